@@ -1,0 +1,1 @@
+"""Benchmarks: compare controllers on the ``gp_envs`` environments through ``gym.make``."""

@@ -1,0 +1,332 @@
+"""Machinery shared by the three envs: hidden truth, scenarios, stepping, reward and checks.
+
+A concrete env (one file each: :mod:`gp_envs.cartpole_swingup`, :mod:`gp_envs.quadrotor`,
+:mod:`gp_envs.dubins_obstacle`) declares its physics module, scenarios, bounds and task; this base
+class turns that into a Gymnasium env whose true parameters stay private and whose nominal model
+is public as ``env.unwrapped.nominal_model``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from gp_envs.model import ControlModel, Task
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A named pair of true and nominal parameter sets (the paper's tables).
+
+    Attributes:
+        description: one line, with the paper's table it comes from.
+        true: true parameter values by name (hidden from controllers).
+        nominal: nominal parameter values by name (what a controller may know).
+        u_lb, u_ub: (m,) control bounds for this scenario.
+        nominal_spread: per-parameter standard deviation of a per-episode Gaussian draw of the
+            nominal value around ``nominal`` (empty: nominal values are fixed).
+        nominal_max: upper clip of drawn nominal values (keeps e.g. ``1 - b`` positive).
+    """
+
+    description: str
+    true: Mapping[str, float]
+    nominal: Mapping[str, float]
+    u_lb: tuple[float, ...]
+    u_ub: tuple[float, ...]
+    nominal_spread: Mapping[str, float] = field(default_factory=dict)
+    nominal_max: float = np.inf
+
+
+class GPEnv(gym.Env[np.ndarray, np.ndarray]):
+    """Base class of the ``gp_envs`` environments (see a concrete env for the system).
+
+    Subclasses set the class attributes below and implement :meth:`_initial_state` and
+    :meth:`_render_frame`; they may override :meth:`_observe` (e.g. to wrap angles) and
+    :meth:`_violation` (e.g. obstacle contact).
+
+    Args:
+        scenario: name of a scenario in :attr:`SCENARIOS`.
+        true_params: overrides of the scenario's true parameter values.
+        randomize: relative spread of the true parameters per reset: each one is multiplied
+            by ``1 + U(-randomize, randomize)`` (``g`` is never randomized).
+        render_mode: ``None``, ``"rgb_array"`` or ``"human"``.
+    """
+
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array", "human"], "render_fps": 20}
+
+    physics: ClassVar[Any]
+    """Physics module: ``PARAM_NAMES``, ``STATE_NAMES``, ``CONTROL_NAMES``, ``ode``."""
+    SCENARIOS: ClassVar[dict[str, Scenario]]
+    DEFAULT_SCENARIO: ClassVar[str]
+    DT: ClassVar[float]
+    """Control period, seconds."""
+    SUBSTEPS: ClassVar[int]
+    """RK4 substeps per control period."""
+    X_LB: ClassVar[np.ndarray]
+    X_UB: ClassVar[np.ndarray]
+    """State box; leaving it terminates the episode (with the penalty of :meth:`_penalty`)."""
+    ANGLE_INDICES: ClassVar[tuple[int, ...]] = ()
+
+    def __init__(self, scenario: str | None = None, true_params: Mapping[str, float] | None = None,
+                 randomize: float = 0.0, render_mode: str | None = None) -> None:
+        scenario = self.DEFAULT_SCENARIO if scenario is None else scenario
+        if scenario not in self.SCENARIOS:
+            raise ValueError(f"{type(self).__name__}: unknown scenario {scenario!r}; "
+                             f"choose one of {sorted(self.SCENARIOS)}")
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, "
+                             f"got {render_mode!r}")
+        if not (np.isfinite(randomize) and 0.0 <= randomize < 1.0):
+            raise ValueError(f"randomize must be in [0, 1), got {randomize}")
+        self.scenario = scenario
+        self.render_mode = render_mode
+        self.randomize = float(randomize)
+        spec = self.SCENARIOS[scenario]
+        truth = dict(spec.true)
+        if true_params:
+            unknown = set(true_params) - set(self.physics.PARAM_NAMES)
+            if unknown:
+                raise ValueError(f"{type(self).__name__}: unknown parameter(s) {sorted(unknown)}; "
+                                 f"known: {list(self.physics.PARAM_NAMES)}")
+            truth.update({k: float(v) for k, v in true_params.items()})
+        self._spec = spec
+        self._base_truth = truth
+        self._plant = self._make_model(truth)
+        self.nominal_model: ControlModel = self._make_model(dict(spec.nominal))
+        """What a controller may know: nominal parameters, dynamics, bounds, task."""
+
+        task = self.nominal_model.task
+        self.action_space = spaces.Box(np.asarray(spec.u_lb, np.float32),
+                                       np.asarray(spec.u_ub, np.float32), dtype=np.float32)
+        self.observation_space = self._observation_space()
+        self._max_steps = round(task.duration / self.DT)
+        self._cost_bound = self._stage_cost_bound()
+        self._state = np.zeros(len(self.physics.STATE_NAMES))
+        self._steps = 0
+        self._held = 0
+        self._fig: Any = None
+
+    # ----------------------------------------------------------------- to be provided
+    def _task(self) -> Task:
+        raise NotImplementedError
+
+    def _initial_state(self) -> np.ndarray:
+        raise NotImplementedError
+
+    def _render_frame(self, ax: Any) -> None:
+        raise NotImplementedError
+
+    def _observe(self, state: np.ndarray) -> np.ndarray:
+        """Observation (= full state, possibly with angles wrapped) of a true state."""
+        return state.copy()
+
+    def _violation(self, state: np.ndarray) -> str | None:
+        """A constraint violated by ``state`` other than leaving the state box, or None."""
+        return None
+
+    def _observation_space(self) -> spaces.Box:
+        n = len(self.physics.STATE_NAMES)
+        return spaces.Box(-np.inf, np.inf, shape=(n,), dtype=np.float32)
+
+    # ----------------------------------------------------------------- models
+    def _make_model(self, params: Mapping[str, float]) -> ControlModel:
+        return ControlModel(
+            name=self.physics.__name__.rsplit(".", 1)[-1], ode=self.physics.ode,
+            param_names=tuple(self.physics.PARAM_NAMES), params=dict(params),
+            state_names=tuple(self.physics.STATE_NAMES),
+            control_names=tuple(self.physics.CONTROL_NAMES), dt=self.DT,
+            x_lb=np.asarray(self.X_LB, float), x_ub=np.asarray(self.X_UB, float),
+            u_lb=np.asarray(self._spec.u_lb, float), u_ub=np.asarray(self._spec.u_ub, float),
+            task=self._task(), substeps=self.SUBSTEPS, angle_indices=self.ANGLE_INDICES,
+        )
+
+    def _oracle(self) -> ControlModel:
+        """The true model of the current episode; only :func:`gp_envs.oracle_model` uses it."""
+        return self._plant
+
+    def _draw_episode_models(self) -> None:
+        rng = self.np_random
+        truth = dict(self._base_truth)
+        if self.randomize > 0:
+            for k in truth:
+                if k != "g":
+                    truth[k] *= 1.0 + rng.uniform(-self.randomize, self.randomize)
+        self._plant = self._make_model(truth)
+        if self._spec.nominal_spread:
+            nominal = dict(self._spec.nominal)
+            for k, sd in self._spec.nominal_spread.items():
+                nominal[k] = float(min(rng.normal(nominal[k], sd), self._spec.nominal_max))
+            self.nominal_model = self._make_model(nominal)
+
+    # ----------------------------------------------------------------- cost and penalty
+    def _stage_cost_bound(self) -> float:
+        """Upper bound of the stage cost over the state box and the action box (per second).
+
+        Used for the termination penalty: leaving the box costs ``remaining_time * bound``, more
+        than staying in it could ever cost, so ending an episode early never pays.
+        """
+        task = self.nominal_model.task
+        lb = self._observation_bounds_for_cost()[0] - task.goal
+        ub = self._observation_bounds_for_cost()[1] - task.goal
+        emax = np.maximum(np.abs(lb), np.abs(ub))
+        weighted = np.abs(task.Q) @ np.where(np.isfinite(emax), emax, 0.0)
+        if np.any(~np.isfinite(emax) & (np.diag(task.Q) > 0)):
+            raise ValueError("state cost weight on a component without a finite bound")
+        du = np.maximum(np.abs(self.action_space.low - task.u_ref),
+                        np.abs(self.action_space.high - task.u_ref))
+        return float(np.where(np.isfinite(emax), emax, 0.0) @ weighted
+                     + du @ np.abs(task.R) @ du)
+
+    def _observation_bounds_for_cost(self) -> tuple[np.ndarray, np.ndarray]:
+        lb = np.asarray(self.X_LB, float).copy()
+        ub = np.asarray(self.X_UB, float).copy()
+        low, high = self.observation_space.low, self.observation_space.high
+        # angles wrapped in the observation have the observation space's bounds
+        for i in range(len(lb)):
+            if np.isfinite(low[i]):
+                lb[i], ub[i] = max(lb[i], low[i]), min(ub[i], high[i])
+        return lb, ub
+
+    # ----------------------------------------------------------------- gym API
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
+              ) -> tuple[np.ndarray, dict[str, Any]]:
+        """Start an episode.
+
+        Args:
+            seed: seeds the env's RNG (initial-state noise, parameter draws).
+            options: ``{"state": array (n,)}`` starts from that state (physical units).
+        """
+        super().reset(seed=seed)
+        self._draw_episode_models()
+        options = options or {}
+        unknown = set(options) - {"state"}
+        if unknown:
+            raise ValueError(f"unknown reset option(s) {sorted(unknown)}; known: ['state']")
+        if "state" in options:
+            state = np.asarray(options["state"], dtype=float)
+            if state.shape != (len(self.physics.STATE_NAMES),):
+                raise ValueError(f"options['state'] must have shape "
+                                 f"({len(self.physics.STATE_NAMES)},), got {state.shape}")
+            if not np.all(np.isfinite(state)):
+                raise ValueError(f"options['state'] must be finite, got {state}")
+        else:
+            state = self._initial_state()
+        self._state = state
+        self._steps = 0
+        self._held = 0
+        obs = self._observe(self._state)
+        info = self._info(obs, violation=None, reason=None, clipped=False)
+        if self.render_mode == "human":
+            self.render()
+        return obs.astype(np.float32), info
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        """Advance one control period with the action held constant (zero-order hold).
+
+        The action is clipped to the action space (``info["action_clipped"]`` says so); a NaN,
+        infinite or wrong-shaped action raises ``ValueError``.
+        """
+        a = np.asarray(action, dtype=float)
+        if a.shape != self.action_space.shape:
+            if a.size == self.action_space.shape[0]:
+                a = a.reshape(self.action_space.shape)
+            else:
+                raise ValueError(f"action must have shape {self.action_space.shape}, "
+                                 f"got {np.shape(action)}")
+        if not np.all(np.isfinite(a)):
+            raise ValueError(f"action must be finite, got {a}")
+        u = np.clip(a, self.action_space.low, self.action_space.high)
+        clipped = bool(np.any(u != a))
+
+        obs_before = self._observe(self._state)
+        reward = -self.DT * float(self.nominal_model.task.stage_cost(obs_before, u))
+        self._state = np.asarray(self._plant.step(self._state, u), dtype=float)
+        self._steps += 1
+
+        reason: str | None = None
+        violation: str | None = None
+        if not np.all(np.isfinite(self._state)):
+            reason = "diverged: the simulated state is not finite"
+            self._state = np.where(np.isfinite(self._state), self._state, 0.0)
+        else:
+            outside = np.flatnonzero((self._state < self.X_LB) | (self._state > self.X_UB))
+            if outside.size:
+                names = [self.physics.STATE_NAMES[i] for i in outside]
+                reason = f"left the state box: {', '.join(names)}"
+            violation = self._violation(self._state)
+            if violation is not None:
+                reason = violation
+        terminated = reason is not None
+        if terminated:
+            remaining = max(self._max_steps - self._steps, 0) + 1
+            reward -= remaining * self.DT * self._cost_bound
+        obs = self._observe(self._state)
+        if self.nominal_model.task.at_goal(obs) and not terminated:
+            self._held += 1
+        else:
+            self._held = 0
+        info = self._info(obs, violation=violation or (reason if terminated else None),
+                          reason=reason, clipped=clipped)
+        if self.render_mode == "human":
+            self.render()
+        return obs.astype(np.float32), float(reward), bool(terminated), False, info
+
+    def _info(self, obs: np.ndarray, violation: str | None, reason: str | None, clipped: bool
+              ) -> dict[str, Any]:
+        task = self.nominal_model.task
+        checked = np.isfinite(task.goal_tolerance)
+        hold_steps = round(task.hold_time / self.DT)
+        success = self._held >= max(hold_steps, 1)
+        return {
+            "success": bool(success),
+            "is_success": bool(success),  # the key stable-baselines3's callbacks read
+            "at_goal": bool(task.at_goal(obs)),
+            "distance_to_goal": float(np.linalg.norm((obs - task.goal)[checked])),
+            "constraint_violation": violation is not None,
+            "violation": violation,
+            "termination_reason": reason,
+            "action_clipped": clipped,
+            "time": self._steps * self.DT,
+        }
+
+    # ----------------------------------------------------------------- rendering
+    def render(self) -> np.ndarray | None:
+        """Draw the system; returns an (H, W, 3) uint8 frame for ``render_mode="rgb_array"``."""
+        if self.render_mode is None:
+            gym.logger.warn("render() called without a render_mode; pass render_mode= to make()")
+            return None
+        if self._fig is None:
+            if self.render_mode == "human":
+                import matplotlib.pyplot as plt
+
+                self._fig = plt.figure(figsize=(5, 4), dpi=80)
+            else:  # off-screen: a bare Agg canvas, no pyplot state, no display needed
+                from matplotlib.backends.backend_agg import FigureCanvasAgg
+                from matplotlib.figure import Figure
+
+                self._fig = Figure(figsize=(5, 4), dpi=80)
+                FigureCanvasAgg(self._fig)
+        self._fig.clear()
+        ax = self._fig.add_subplot(111)
+        self._render_frame(ax)
+        ax.set_title(f"{type(self).__name__}  t = {self._steps * self.DT:.2f} s", fontsize=9)
+        if self.render_mode == "human":
+            import matplotlib.pyplot as plt
+
+            plt.pause(1.0 / self.metadata["render_fps"])
+            return None
+        canvas = self._fig.canvas
+        canvas.draw()
+        return np.asarray(canvas.buffer_rgba())[..., :3].copy()
+
+    def close(self) -> None:
+        if self._fig is not None and self.render_mode == "human":
+            import matplotlib.pyplot as plt
+
+            plt.close(self._fig)
+        self._fig = None

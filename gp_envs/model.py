@@ -1,0 +1,274 @@
+"""What a controller may know about a system: its dynamics, bounds and task.
+
+A :class:`ControlModel` bundles one physical model (an ODE written once, in CasADi, in
+:mod:`gp_envs.physics`) with a set of parameter values, the control period, the state and control
+bounds and the task. The envs build one from their *true* parameters to simulate the plant and
+expose another, built from the *nominal* parameters, as ``env.unwrapped.nominal_model``; both run
+the same formula, so the env and a controller never hold two copies of the physics.
+
+Numeric evaluation goes through compiled CasADi functions (``f``, ``step``); symbolic evaluation
+(``f`` called with CasADi symbols, or :meth:`ControlModel.casadi_function`) gives expressions an
+optimizer can differentiate.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from types import MappingProxyType
+
+import casadi as ca
+import numpy as np
+
+OdeFn = Callable[[ca.SX, ca.SX, ca.SX], ca.SX]
+"""Signature of a physics module's ``ode(x, u, p)``: state (n,), control (m,), params (k,)."""
+
+
+@dataclass(frozen=True)
+class Obstacle:
+    """A circular obstacle in the plane of the first two state components.
+
+    Attributes:
+        center: (2,) centre in metres.
+        radius: radius in metres.
+    """
+
+    center: tuple[float, float]
+    radius: float
+
+    def clearance(self, position: np.ndarray, body_radius: float = 0.0) -> np.ndarray:
+        """Distance from the obstacle's rim to a body's rim, metres (< 0 means contact).
+
+        Args:
+            position: (..., 2) positions in metres.
+            body_radius: radius of the body, metres.
+        """
+        d = np.asarray(position, dtype=float)[..., :2] - np.asarray(self.center)
+        return np.hypot(d[..., 0], d[..., 1]) - self.radius - body_radius
+
+
+@dataclass(frozen=True)
+class Task:
+    """The control task shared by the env's reward and the controllers' cost.
+
+    Stage cost (per second): ``l(x, u) = e' Q e + (u - u_ref)' R (u - u_ref)`` with
+    ``e = x - goal``; the env's reward for one control period is ``-dt * l(x_k, u_k)``.
+    A controller adds ``e' Qf e`` at the end of its horizon.
+
+    Attributes:
+        goal: (n,) goal state.
+        Q: (n, n) state weight.
+        R: (m, m) control weight.
+        Qf: (n, n) terminal weight for finite-horizon controllers.
+        u_ref: (m,) control the cost is centred on (e.g. nominal hover thrust).
+        goal_tolerance: (n,) per-component |x_i - goal_i| tolerance; ``inf`` means "not checked".
+        hold_time: seconds the state must stay within tolerance for the task to count as success.
+        duration: episode length in seconds (the time limit).
+        obstacles: obstacles to keep clear of (position = first two state components).
+        body_radius: the vehicle's radius in metres, for obstacle clearance.
+    """
+
+    goal: np.ndarray
+    Q: np.ndarray
+    R: np.ndarray
+    Qf: np.ndarray
+    u_ref: np.ndarray
+    goal_tolerance: np.ndarray
+    hold_time: float
+    duration: float
+    obstacles: tuple[Obstacle, ...] = ()
+    body_radius: float = 0.0
+
+    def stage_cost(self, x: np.ndarray, u: np.ndarray) -> float | ca.SX:
+        """``l(x, u)`` (see class doc); numeric for arrays, symbolic for CasADi inputs."""
+        e = x - self.goal
+        du = u - self.u_ref
+        if isinstance(x, (ca.SX, ca.MX)) or isinstance(u, (ca.SX, ca.MX)):
+            return ca.bilin(self.Q, e, e) + ca.bilin(self.R, du, du)
+        e = np.asarray(e, dtype=float)
+        du = np.asarray(du, dtype=float)
+        return float(e @ self.Q @ e + du @ self.R @ du)
+
+    def at_goal(self, x: np.ndarray) -> bool:
+        """True when every component is within ``goal_tolerance`` of the goal."""
+        return bool(np.all(np.abs(np.asarray(x) - self.goal) <= self.goal_tolerance))
+
+
+@dataclass(frozen=True)
+class ControlModel:
+    """A physical model with one set of parameter values, bounds and a task.
+
+    Attributes:
+        name: system name (``"cartpole"``, ``"quadrotor"``, ``"dubins"``).
+        ode: the physics, ``ode(x, u, p) -> xdot`` in CasADi operations.
+        param_names: names of the entries of ``p``, in order (the paper's symbols).
+        params: parameter values by name (read-only mapping).
+        state_names: (n,) names of the state components, in the paper's order.
+        control_names: (m,) names of the control components.
+        dt: control period in seconds (zero-order hold).
+        x_lb, x_ub: (n,) state bounds (``-inf``/``inf`` where unbounded).
+        u_lb, u_ub: (m,) control bounds.
+        task: the control task.
+        substeps: RK4 substeps per control period used by :meth:`step`.
+        angle_indices: indices of state components that are angles (radians).
+    """
+
+    name: str
+    ode: OdeFn
+    param_names: tuple[str, ...]
+    params: Mapping[str, float]
+    state_names: tuple[str, ...]
+    control_names: tuple[str, ...]
+    dt: float
+    x_lb: np.ndarray
+    x_ub: np.ndarray
+    u_lb: np.ndarray
+    u_ub: np.ndarray
+    task: Task
+    substeps: int = 10
+    angle_indices: tuple[int, ...] = ()
+    _fns: dict = field(default_factory=dict, init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        unknown = set(self.params) - set(self.param_names)
+        missing = set(self.param_names) - set(self.params)
+        if unknown or missing:
+            raise ValueError(
+                f"{self.name}: parameters must be exactly {list(self.param_names)}; "
+                f"unknown {sorted(unknown)}, missing {sorted(missing)}"
+            )
+        for k, v in self.params.items():
+            if not np.isfinite(v):
+                raise ValueError(f"{self.name}: parameter {k}={v} is not finite")
+        object.__setattr__(self, "params", MappingProxyType(dict(self.params)))
+
+    # ----------------------------------------------------------------- sizes and parameters
+    @property
+    def n_states(self) -> int:
+        """Number of state components n."""
+        return len(self.state_names)
+
+    @property
+    def n_controls(self) -> int:
+        """Number of control components m."""
+        return len(self.control_names)
+
+    @property
+    def param_vector(self) -> np.ndarray:
+        """(k,) parameter values in the order of ``param_names``."""
+        return np.array([self.params[k] for k in self.param_names], dtype=float)
+
+    def with_params(self, **overrides: float) -> ControlModel:
+        """A copy with some parameter values replaced (unknown names raise ``ValueError``)."""
+        unknown = set(overrides) - set(self.param_names)
+        if unknown:
+            raise ValueError(
+                f"{self.name}: unknown parameter(s) {sorted(unknown)}; "
+                f"known: {list(self.param_names)}"
+            )
+        new = dict(self.params)
+        new.update({k: float(v) for k, v in overrides.items()})
+        return ControlModel(
+            name=self.name, ode=self.ode, param_names=self.param_names, params=new,
+            state_names=self.state_names, control_names=self.control_names, dt=self.dt,
+            x_lb=self.x_lb, x_ub=self.x_ub, u_lb=self.u_lb, u_ub=self.u_ub, task=self.task,
+            substeps=self.substeps, angle_indices=self.angle_indices,
+        )
+
+    # ----------------------------------------------------------------- CasADi functions
+    def _symbols(self) -> tuple[ca.SX, ca.SX, ca.SX]:
+        return (ca.SX.sym("x", self.n_states), ca.SX.sym("u", self.n_controls),
+                ca.SX.sym("p", len(self.param_names)))
+
+    def _parametric(self, key: str) -> ca.Function:
+        """Compiled-once CasADi functions of (x, u, p), shared by models of the same system."""
+        cache = _FUNCTION_CACHE.setdefault((self.ode, self.dt, self.substeps), {})
+        if key not in cache:
+            x, u, p = self._symbols()
+            if key == "f":
+                cache[key] = ca.Function("f", [x, u, p], [self.ode(x, u, p)],
+                                         ["x", "u", "p"], ["xdot"])
+            elif key == "step":
+                h = self.dt / self.substeps
+                xk = x
+                for _ in range(self.substeps):
+                    k1 = self.ode(xk, u, p)
+                    k2 = self.ode(xk + h / 2 * k1, u, p)
+                    k3 = self.ode(xk + h / 2 * k2, u, p)
+                    k4 = self.ode(xk + h * k3, u, p)
+                    xk = xk + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+                cache[key] = ca.Function("step", [x, u, p], [xk], ["x", "u", "p"], ["x_next"])
+            else:  # pragma: no cover - internal keys only
+                raise KeyError(key)
+        return cache[key]
+
+    def casadi_function(self) -> ca.Function:
+        """CasADi ``f(x (n,), u (m,)) -> xdot (n,)`` with this model's parameter values embedded."""
+        if "f_embedded" not in self._fns:
+            x, u, _ = self._symbols()
+            self._fns["f_embedded"] = ca.Function(
+                f"{self.name}_f", [x, u], [self.ode(x, u, ca.DM(self.param_vector))],
+                ["x", "u"], ["xdot"])
+        return self._fns["f_embedded"]
+
+    def casadi_parametric_function(self) -> ca.Function:
+        """CasADi ``f(x (n,), u (m,), p (k,)) -> xdot (n,)`` with parameters as an input."""
+        return self._parametric("f")
+
+    # ----------------------------------------------------------------- evaluation
+    def f(self, x: np.ndarray | ca.SX | ca.MX, u: np.ndarray | ca.SX | ca.MX
+          ) -> np.ndarray | ca.SX | ca.MX:
+        """Continuous dynamics ``xdot = f(x, u)`` with this model's parameters.
+
+        Args:
+            x: state, (n,) or a batch (N, n); or a CasADi symbol/expression (n, 1).
+            u: control, (m,) or a batch (N, m); or a CasADi symbol/expression (m, 1).
+
+        Returns:
+            xdot with the shape of ``x`` (numeric), or a CasADi expression (symbolic).
+        """
+        if any(isinstance(a, (ca.SX, ca.MX)) for a in (x, u)):
+            return self.casadi_function()(x, u)
+        return self._batched("f", x, u)
+
+    def step(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """State after one control period ``dt`` under zero-order hold on ``u`` (RK4).
+
+        Args:
+            x: (n,) or (N, n) state(s). u: (m,) or (N, m) control(s).
+
+        Returns:
+            (n,) or (N, n) next state(s).
+        """
+        return self._batched("step", x, u)
+
+    def _batched(self, key: str, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        x = np.asarray(x, dtype=float)
+        u = np.asarray(u, dtype=float)
+        single = x.ndim == 1
+        xb = np.atleast_2d(x)
+        ub = np.atleast_2d(u)
+        if xb.shape[-1] != self.n_states or ub.shape[-1] != self.n_controls:
+            raise ValueError(
+                f"{self.name}: expected x (..., {self.n_states}) and u (..., {self.n_controls}), "
+                f"got {x.shape} and {u.shape}")
+        if ub.shape[0] != xb.shape[0]:
+            if ub.shape[0] == 1:
+                ub = np.repeat(ub, xb.shape[0], axis=0)
+            else:
+                raise ValueError(f"{self.name}: batch sizes differ: x {x.shape}, u {u.shape}")
+        fn = self._parametric(key)
+        p = self.param_vector
+        if xb.shape[0] == 1:
+            out = np.asarray(fn(xb[0], ub[0], p)).reshape(1, -1)
+        else:
+            out = np.asarray(fn.map(xb.shape[0])(xb.T, ub.T, p)).T
+        return out[0] if single else out
+
+
+_FUNCTION_CACHE: dict[tuple, dict[str, ca.Function]] = {}
+
+
+def diag(values: Sequence[float]) -> np.ndarray:
+    """Square diagonal matrix from a sequence (helper for cost weights)."""
+    return np.diag(np.asarray(values, dtype=float))

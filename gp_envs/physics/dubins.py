@@ -1,0 +1,38 @@
+"""Dubins vehicle with actuator losses (paper, "Obstacle Avoidance using SSGP"; errata note 2).
+
+A planar vehicle commanded in speed ``u1`` (m/s) and turn rate ``u2`` (rad/s); the actuators
+deliver only the fractions ``1 - b1`` and ``1 - b2`` of the command:
+
+    xdot   = (1 - b1) u1 cos(psi)
+    ydot   = (1 - b1) u1 sin(psi)
+    psidot = (1 - b2) u2
+
+(the paper's third equation repeats b1; the reading used here is b2).
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+
+PARAM_NAMES = ("b1", "b2")
+"""Speed loss and turn-rate loss (dimensionless, < 1)."""
+STATE_NAMES = ("x", "y", "psi")
+"""Position (m) and heading (rad, from the x axis)."""
+CONTROL_NAMES = ("u1", "u2")
+"""Commanded speed (m/s) and commanded turn rate (rad/s)."""
+
+
+def ode(x: ca.SX, u: ca.SX, p: ca.SX) -> ca.SX:
+    """Dubins dynamics ``xdot = f(x, u, p)``.
+
+    Args:
+        x: (3,) state ``[x, y, psi]``.
+        u: (2,) control ``[u1, u2]``.
+        p: (2,) parameters ``[b1, b2]``.
+
+    Returns:
+        (3,) state derivative.
+    """
+    b1, b2 = p[0], p[1]
+    speed = (1 - b1) * u[0]
+    return ca.vertcat(speed * ca.cos(x[2]), speed * ca.sin(x[2]), (1 - b2) * u[1])

@@ -1,0 +1,440 @@
+"""Environment tests: physics against independent facts, API conventions, hiding, bad input."""
+
+from __future__ import annotations
+
+import casadi as ca
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env as gym_check_env
+
+import gp_envs
+from gp_envs.physics import cartpole
+
+ENV_IDS = list(gp_envs.ENV_IDS)
+
+
+def make(env_id: str, **kwargs):
+    return gym.make(env_id, disable_env_checker=True, **kwargs)
+
+
+# ------------------------------------------------------------------------ cart-pole physics
+def _cartpole_model(**params):
+    env = make("gp_envs/CartPoleSwingUp-v0")
+    return env.unwrapped.nominal_model.with_params(**params)
+
+
+def _energy(x, model):
+    return float(cartpole.mechanical_energy(x, model.param_vector))
+
+
+@pytest.mark.parametrize("x0", [[0.0, 2.0, 0.5, 3.0], [0.3, 0.1, -1.0, 8.0]])
+def test_cartpole_energy_conserved_without_damping(x0):
+    model = _cartpole_model(b1=0.0, b2=0.0)
+    x = np.array(x0)
+    e0 = _energy(x, model)
+    for _ in range(100):  # 5 s
+        x = model.step(x, [0.0])
+        assert abs(_energy(x, model) - e0) < 1e-6 * max(1.0, abs(e0))
+
+
+def test_cartpole_damping_never_adds_energy():
+    model = _cartpole_model(b1=0.3, b2=0.3)
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        x = rng.uniform([-1, -np.pi, -3, -10], [1, np.pi, 3, 10])
+        e = _energy(x, model)
+        for _ in range(40):
+            x = model.step(x, [0.0])
+            e_new = _energy(x, model)
+            assert e_new <= e + 1e-9
+            e = e_new
+
+
+def test_cartpole_paper_sign_of_b2_would_add_energy():
+    """The errata's point, checked independently: the printed b2 sign is an energy source.
+
+    dE/dt for f = 0 from the dissipative model equals -b1 xd^2 - b2 thd^2 (power of friction).
+    """
+    model = _cartpole_model(b1=0.2, b2=0.3)
+    x = ca.SX.sym("x", 4)
+    e = cartpole.mechanical_energy(x, model.param_vector)
+    edot = ca.jtimes(e, x, model.f(x, ca.DM([0.0])))
+    fn = ca.Function("edot", [x], [edot])
+    rng = np.random.default_rng(1)
+    for _ in range(10):
+        s = rng.uniform(-3, 3, size=4)
+        expected = -0.2 * s[2] ** 2 - 0.3 * s[3] ** 2
+        assert float(fn(s)) == pytest.approx(expected, abs=1e-9)
+
+
+def _linearization_eigs(model, x_eq):
+    x = ca.SX.sym("x", 4)
+    jac = ca.Function("A", [x], [ca.jacobian(model.f(x, ca.DM([0.0])), x)])
+    return np.linalg.eigvals(np.asarray(jac(x_eq)))
+
+
+def test_cartpole_hanging_is_stable_upright_is_unstable():
+    model = _cartpole_model(b1=0.3, b2=0.3)
+    hanging = _linearization_eigs(model, [0, 0, 0, 0])
+    upright = _linearization_eigs(model, [0, np.pi, 0, 0])
+    assert np.all(hanging.real <= 1e-9)
+    assert np.max(upright.real) > 1.0  # sqrt(g/l)-like growth rate
+    # and in simulation: a small push from hanging stays small, from upright grows
+    x = np.array([0.0, 0.05, 0.0, 0.0])
+    for _ in range(60):
+        x = model.step(x, [0.0])
+    assert abs(x[1]) < 0.05
+    x = np.array([0.0, np.pi + 0.01, 0.0, 0.0])
+    for _ in range(40):
+        x = model.step(x, [0.0])
+    assert abs(x[1] - np.pi) > 0.5
+
+
+# ------------------------------------------------------------------------ quadrotor physics
+def _quad_model():
+    return make("gp_envs/Quadrotor-v0", scenario="gp").unwrapped.nominal_model
+
+
+def test_quadrotor_hover_holds_still():
+    model = _quad_model()
+    m, g = model.params["m"], model.params["g"]
+    x0 = np.zeros(12)
+    x0[:3] = [0.3, -0.2, 1.0]
+    x = x0.copy()
+    for _ in range(100):
+        x = model.step(x, np.full(4, m * g / 4))
+    np.testing.assert_allclose(x, x0, atol=1e-12)
+
+
+def test_quadrotor_pure_roll_torque_changes_only_roll():
+    model = _quad_model()
+    m, g, arm, jx = (model.params[k] for k in ("m", "g", "L", "Jx"))
+    h, d = m * g / 4, 0.01
+    u = np.array([h, h - d, h, h + d])  # F4 - F2 = 2d, F1 = F3, yaw torque zero
+    x = np.zeros(12)
+    t = 0.0
+    for _ in range(4):
+        x = model.step(x, u)
+        t += model.dt
+    alpha = arm * 2 * d / jx
+    assert x[3] == pytest.approx(0.5 * alpha * t**2, rel=1e-9)
+    assert x[9] == pytest.approx(alpha * t, rel=1e-9)
+    np.testing.assert_allclose(x[[4, 5, 10, 11]], 0.0, atol=1e-14)
+
+
+# ------------------------------------------------------------------------ Dubins physics
+def _dubins_model():
+    return make("gp_envs/DubinsObstacle-v0").unwrapped.nominal_model.with_params(b1=0.3, b2=0.2)
+
+
+def test_dubins_straight_line_closed_form():
+    model = _dubins_model()
+    x0 = np.array([1.0, -2.0, 0.7])
+    x = x0.copy()
+    for _ in range(30):
+        x = model.step(x, [1.5, 0.0])
+    t = 30 * model.dt
+    v = 0.7 * 1.5
+    np.testing.assert_allclose(x, [1 + v * t * np.cos(0.7), -2 + v * t * np.sin(0.7), 0.7],
+                               atol=1e-12)
+
+
+def test_dubins_circle_closed_form():
+    model = _dubins_model()
+    u1, u2 = 1.2, 0.8
+    v, w = 0.7 * u1, 0.8 * u2
+    x = np.array([0.0, 0.0, 0.0])
+    for _ in range(50):
+        x = model.step(x, [u1, u2])
+    t = 50 * model.dt
+    radius = v / w
+    expected = [radius * np.sin(w * t), radius * (1 - np.cos(w * t)), w * t]
+    np.testing.assert_allclose(x, expected, atol=1e-7)
+
+
+# ------------------------------------------------------------------------ integration accuracy
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_halving_rk4_substeps_changes_trajectory_negligibly(env_id):
+    env = make(env_id)
+    model = env.unwrapped.nominal_model
+    fine = gp_envs.ControlModel(**{**_fields(model), "substeps": 2 * model.substeps})
+    rng = np.random.default_rng(0)
+    obs, _ = env.reset(seed=0)
+    x = x_fine = np.asarray(obs, float)
+    mid = (model.u_lb + model.u_ub) / 2
+    for _ in range(round(5.0 / model.dt)):
+        u = mid + 0.3 * (model.u_ub - model.u_lb) * rng.uniform(-0.5, 0.5, model.n_controls)
+        x, x_fine = model.step(x, u), fine.step(x_fine, u)
+    scale = max(1.0, float(np.max(np.abs(x_fine))))
+    assert np.max(np.abs(x - x_fine)) < 1e-5 * scale
+
+
+def _fields(model):
+    return {k: getattr(model, k) for k in (
+        "name", "ode", "param_names", "params", "state_names", "control_names", "dt", "x_lb",
+        "x_ub", "u_lb", "u_ub", "task", "substeps", "angle_indices")}
+
+
+# ------------------------------------------------------------------------ Gymnasium conventions
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_gymnasium_env_checker(env_id):
+    gym_check_env(gym.make(env_id).unwrapped, skip_render_check=True)
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_sb3_env_checker(env_id):
+    sb3_checker = pytest.importorskip("stable_baselines3.common.env_checker")
+    sb3_checker.check_env(gym.make(env_id).unwrapped, warn=True)
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_string_entry_point_form_works(env_id):
+    env = gym.make("gp_envs:" + env_id)
+    assert env.observation_space.shape == (env.unwrapped.nominal_model.n_states,)
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_step_types_and_copies(env_id):
+    env = make(env_id)
+    obs, info = env.reset(seed=3)
+    assert obs.dtype == np.float32 and env.observation_space.contains(obs)
+    obs2, reward, terminated, truncated, info = env.step(env.action_space.sample())
+    assert type(reward) is float and type(terminated) is bool and type(truncated) is bool
+    assert obs2.dtype == np.float32
+    obs2[:] = 1e6  # mutating the returned array must not touch the env
+    obs3, *_ = env.step(env.action_space.sample())
+    assert np.all(np.abs(obs3) < 1e5)
+    for key in ("success", "constraint_violation", "distance_to_goal"):
+        assert key in info
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_seeding_reproducible_and_distinct(env_id):
+    def rollout(seed):
+        env = make(env_id)
+        obs, _ = env.reset(seed=seed)
+        env.action_space.seed(123)
+        traj = [obs]
+        for _ in range(20):
+            obs, *_ = env.step(env.action_space.sample())
+            traj.append(obs)
+        return np.array(traj)
+
+    np.testing.assert_array_equal(rollout(7), rollout(7))
+    assert not np.array_equal(rollout(7), rollout(8))
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_reset_from_given_state(env_id):
+    env = make(env_id)
+    n = env.unwrapped.nominal_model.n_states
+    state = np.zeros(n)
+    state[0] = 0.5
+    obs, _ = env.reset(seed=0, options={"state": state})
+    assert obs[0] == pytest.approx(0.5)
+    with pytest.raises(ValueError, match="shape"):
+        env.reset(options={"state": np.zeros(n + 1)})
+    with pytest.raises(ValueError, match="finite"):
+        env.reset(options={"state": np.full(n, np.nan)})
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_render_rgb_array_shows_the_state(env_id):
+    env = make(env_id, render_mode="rgb_array")
+    env.reset(seed=0)
+    first = env.render()
+    assert first.ndim == 3 and first.shape[2] == 3 and first.dtype == np.uint8
+    for _ in range(10):
+        env.step(env.action_space.high)
+    second = env.render()
+    assert second.shape == first.shape
+    assert np.mean(first != second) > 1e-3
+    env.close()
+
+
+# ------------------------------------------------------------------------ bad input
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_bad_actions_raise_and_out_of_bounds_clips(env_id):
+    env = make(env_id)
+    env.reset(seed=0)
+    m = env.action_space.shape[0]
+    with pytest.raises(ValueError, match="finite"):
+        env.step(np.full(m, np.nan))
+    with pytest.raises(ValueError, match="shape"):
+        env.step(np.zeros(m + 1))
+    *_, info = env.step(env.action_space.high + 100.0)
+    assert info["action_clipped"]
+
+
+def test_unknown_scenario_and_parameter_raise():
+    with pytest.raises(ValueError, match="unknown scenario"):
+        gym.make("gp_envs/CartPoleSwingUp-v0", scenario="nope")
+    with pytest.raises(ValueError, match="unknown parameter"):
+        gym.make("gp_envs/Quadrotor-v0", true_params={"mass": 1.0})
+    with pytest.raises(ValueError, match="randomize"):
+        gym.make("gp_envs/Quadrotor-v0", randomize=-0.1)
+
+
+# ------------------------------------------------------------------------ hidden truth
+_SECRET = {
+    "gp_envs/CartPoleSwingUp-v0": {"mc": 1.2345671, "mp": 0.4567891, "l": 0.5432167,
+                                   "b1": 0.2718281, "b2": 0.3141592},
+    "gp_envs/Quadrotor-v0": {"m": 1.0123457, "L": 0.2412345},
+    "gp_envs/DubinsObstacle-v0": {"b1": 0.2987651, "b2": 0.3123457},
+}
+
+
+def _public_values(obj, depth=0, seen=None):
+    """Every number reachable from ``obj`` through public attributes, mappings and sequences."""
+    seen = set() if seen is None else seen
+    if id(obj) in seen or depth > 6:
+        return
+    seen.add(id(obj))
+    if isinstance(obj, (int, float, np.floating, np.integer)):
+        yield float(obj)
+    elif isinstance(obj, np.ndarray):
+        if obj.dtype.kind in "fiu":
+            yield from obj.astype(float).ravel().tolist()
+    elif isinstance(obj, dict) or (hasattr(obj, "items") and hasattr(obj, "keys")):
+        for v in obj.values():
+            yield from _public_values(v, depth + 1, seen)
+    elif isinstance(obj, (list, tuple)):
+        for v in obj:
+            yield from _public_values(v, depth + 1, seen)
+    elif hasattr(obj, "__dict__") and not isinstance(obj, type) and not callable(obj):
+        for k, v in vars(obj).items():
+            if not k.startswith("_"):
+                yield from _public_values(v, depth + 1, seen)
+
+
+def _visible_values(env, skip_spec):
+    obs, info = env.reset(seed=0)
+    values = list(_public_values(obs)) + list(_public_values(info))
+    for _ in range(5):
+        obs, r, _te, _tr, info = env.step(env.action_space.sample())
+        values += list(_public_values(obs)) + list(_public_values(info)) + [r]
+    public = {k: v for k, v in vars(env.unwrapped).items()
+              if not k.startswith("_") and not (skip_spec and k == "spec")}
+    values += list(_public_values(public))
+    values += list(_public_values(env.unwrapped.nominal_model))
+    return values
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_true_parameters_are_hidden(env_id):
+    secret = _SECRET[env_id]
+    env = gym.make(env_id, true_params=secret)
+    # Gymnasium records make()'s own arguments in env.spec.kwargs: the caller's overrides are
+    # the caller's to see; everything else must not show them.
+    values = _visible_values(env, skip_spec=True)
+    for name, v in secret.items():
+        assert not np.any(np.isclose(values, v, rtol=1e-6, atol=0)), name
+    # ... while the oracle, asked for explicitly, has them
+    oracle = gp_envs.oracle_model(env)
+    for name, v in secret.items():
+        assert oracle.params[name] == pytest.approx(v)
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_randomized_truth_is_hidden_everywhere(env_id):
+    env = gym.make(env_id, randomize=0.1)
+    values = _visible_values(env, skip_spec=False)
+    truth = gp_envs.oracle_model(env).params
+    for name in secret_names(env_id):
+        assert not np.any(np.isclose(values, truth[name], rtol=1e-9, atol=0)), name
+
+
+def secret_names(env_id):
+    return list(_SECRET[env_id])
+
+
+def test_oracle_model_rejects_other_envs():
+    with pytest.raises(TypeError):
+        gp_envs.oracle_model(gym.make("CartPole-v1"))
+
+
+def test_randomized_truth_differs_per_reset_but_is_seeded():
+    env = gym.make("gp_envs/CartPoleSwingUp-v0", randomize=0.2)
+    env.reset(seed=1)
+    a = gp_envs.oracle_model(env).params["mc"]
+    env.reset(seed=2)
+    b = gp_envs.oracle_model(env).params["mc"]
+    env.reset(seed=1)
+    c = gp_envs.oracle_model(env).params["mc"]
+    assert a != b and a == c and 0.8 <= a <= 1.2
+
+
+def test_dubins_nominal_drawn_per_episode_from_the_papers_distribution():
+    env = gym.make("gp_envs/DubinsObstacle-v0")
+    draws = []
+    for seed in range(400):
+        env.reset(seed=seed)
+        draws.append(env.unwrapped.nominal_model.params["b1"])
+    draws = np.array(draws)
+    assert draws.max() <= 0.9
+    assert abs(np.median(draws) - 0.3) < 0.06
+    assert 0.22 < np.std(draws) < 0.34
+    assert gp_envs.oracle_model(env).params["b1"] == 0.3
+
+
+# ------------------------------------------------------------------------ model API
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_nominal_model_numeric_symbolic_and_batch_agree(env_id):
+    model = make(env_id).unwrapped.nominal_model
+    rng = np.random.default_rng(0)
+    X = rng.uniform(-1, 1, (7, model.n_states))
+    U = rng.uniform(model.u_lb, model.u_ub, (7, model.n_controls))
+    batch = model.f(X, U)
+    xs, us = ca.SX.sym("x", model.n_states), ca.SX.sym("u", model.n_controls)
+    sym = ca.Function("f", [xs, us], [model.f(xs, us)])
+    for i in range(7):
+        np.testing.assert_allclose(batch[i], model.f(X[i], U[i]), rtol=1e-12)
+        np.testing.assert_allclose(np.asarray(sym(X[i], U[i])).ravel(), batch[i], rtol=1e-12)
+    with pytest.raises(ValueError):
+        model.f(X[:, :-1], U)
+
+
+# ------------------------------------------------------------------------ task semantics
+def test_leaving_the_track_never_pays():
+    env = gym.make("gp_envs/CartPoleSwingUp-v0")
+    env.reset(seed=0)
+    ret_crash, done = 0.0, False
+    while not done:
+        _, r, te, tr, info = env.step(np.array([35.0], np.float32))
+        ret_crash += r
+        done = te or tr
+    assert te and info["termination_reason"].startswith("left the state box")
+    env.reset(seed=0)
+    ret_idle, done = 0.0, False
+    while not done:
+        _, r, te, tr, _ = env.step(np.array([0.0], np.float32))
+        ret_idle += r
+        done = te or tr
+    assert tr and not te
+    assert ret_crash < ret_idle
+
+
+def test_dubins_obstacle_contact_terminates_as_violation():
+    env = gym.make("gp_envs/DubinsObstacle-v0")
+    env.reset(seed=0)
+    done, info = False, {}
+    while not done:  # straight at the goal goes through the obstacle
+        _, _, te, tr, info = env.step(np.array([2.0, 0.0], np.float32))
+        done = te or tr
+    assert te and info["constraint_violation"] and info["violation"] == "obstacle contact"
+    assert info["clearance"] < 0
+
+
+def test_success_requires_holding_the_goal():
+    env = gym.make("gp_envs/Quadrotor-v0")
+    model = env.unwrapped.nominal_model
+    goal = model.task.goal.copy()
+    env.reset(seed=0, options={"state": goal})
+    hover = np.full(4, gp_envs.oracle_model(env).params["m"] * 9.81 / 4, np.float32)
+    successes = []
+    for _ in range(25):
+        *_, info = env.step(hover)
+        successes.append(info["success"])
+    hold = round(model.task.hold_time / model.dt)
+    assert not any(successes[: hold - 1]) and all(successes[hold:])
