@@ -1,0 +1,564 @@
+"""Gauss pseudospectral transcription of a Bolza problem to a parametric CasADi NLP, and its solve.
+
+Paper section "Gauss Pseudospectral Optimal Control", subsection "Gauss Pseudospectral
+Discretization of the Continuous Bolza Problem", eqs. (DBP), (AC), (QC), (PC), with the standard
+LG reading (Benson et al. 2006; Garg et al. 2010; reference errata note 5). The horizon
+[t0, tf] is split into S mesh intervals [a_s, b_s] (S = 1 is the paper's global method); each
+has K LG nodes, ``h_s = (b_s - a_s) / 2`` and decision variables
+
+* ``X_{s,0..K}`` (n each): the state at the support points ``tau_0 = -1, tau_1..tau_K``;
+* ``U_{s,1..K}`` (m each): the control at the nodes.
+
+The end point of interval s *is* the start point X_{s+1,0} of the next one (state continuity by
+shared variables), and after the last interval comes X_f. Constraints, in this order in ``g``:
+
+1. defects (AC): ``sum_i D[k, i] X_{s,i} - h_s f(X_{s,k}, U_{s,k}, p) = 0``, (S K n);
+2. quadrature (QC): ``X_{s+1,0} - X_{s,0} - h_s sum_k w_k f(X_{s,k}, U_{s,k}, p) = 0``, (S n);
+3. path constraints (PC) at every node, (S K n_c);
+4. boundary constraints ``b(X_0, X_f, tf, p)``, (n_b).
+
+Cost (DBP): ``Phi(X_0, X_f, tf, p) + sum_s h_s sum_k w_k L(X_{s,k}, U_{s,k}, p)``.
+
+Costate estimate (Garg et al. 2010, Thm. 1, written for CasADi's multiplier convention
+``grad f + J_g' lam_g + lam_x = 0``, which IPOPT and sqpmethod results follow in CasADi):
+with nu_{s,k} the defect multipliers and nu_{s,f} the quadrature multipliers,
+
+    lambda(t_{s,k}) = -(nu_{s,k} / w_k + nu_{s,f}),     lambda(b_s) = -nu_{s,f},
+    lambda(t0) = -nu_{1,f} + sum_k D[k, 0] nu_{1,k}.
+
+These follow from the NLP stationarity conditions by discrete integration by parts; the last
+line is the transversality condition lambda(t0) = -dPhi/dx0 - (initial-bound multiplier).
+"""
+
+from __future__ import annotations
+
+import copy
+import time
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import casadi as ca
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from gp_agents.pseudospectral.nodes import differentiation_matrix, legendre_gauss, support_points
+from gp_agents.pseudospectral.problem import OptimalControlProblem
+from gp_agents.pseudospectral.solution import InitialGuess, OCPSolution, TrajectoryLike
+
+__all__ = ["IPOPT_WARM_START_OPTIONS", "GaussPseudospectralSolver", "default_solver_options"]
+
+FloatArray = NDArray[np.float64]
+
+_QUIET_QPSOL: dict[str, dict[str, Any]] = {
+    "qrqp": {"print_iter": False, "print_header": False, "print_info": False},
+    "qpoases": {"printLevel": "none"},
+    "osqp": {"osqp": {"verbose": False}},
+    "highs": {"highs": {"output_flag": False}},
+    "proxqp": {},
+    "daqp": {},
+}
+
+
+IPOPT_WARM_START_OPTIONS: dict[str, Any] = {
+    "ipopt": {
+        "warm_start_init_point": "yes",
+        "mu_init": 1e-6,
+        "warm_start_bound_push": 1e-9,
+        "warm_start_mult_bound_push": 1e-9,
+    }
+}
+"""IPOPT options that make it use the multipliers of a previous solution (``lam_x0``/``lam_g0``)
+and start with a small barrier parameter. Pass as ``solver_options`` when most solves are
+re-solves from a previous solution of the same solver (MPC); cold solves may take a few more
+iterations with them."""
+
+
+def _deep_merge(base: dict[str, Any], extra: Mapping[str, Any]) -> dict[str, Any]:
+    out = copy.deepcopy(base)
+    for key, val in extra.items():
+        if isinstance(val, Mapping) and isinstance(out.get(key), dict):
+            out[key] = _deep_merge(out[key], val)
+        else:
+            out[key] = copy.deepcopy(val)
+    return out
+
+
+def default_solver_options(solver: str, user: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """Quiet default CasADi ``nlpsol`` options for ``solver``, deep-merged with ``user``.
+
+    * ``'ipopt'``: ``print_level 0``, no banner, ``print_time False``.
+    * ``'sqpmethod'``: exact Hessian, ``qpsol='qrqp'`` unless given, all printing off (also for the
+      QP solvers qrqp, qpoases, osqp, highs).
+    * anything else: ``print_time False`` only.
+
+    Args:
+        solver: CasADi nlpsol plugin name.
+        user: options in CasADi's nested format, e.g. ``{"ipopt": {"max_iter": 50}}``.
+
+    Returns:
+        The merged options dictionary.
+    """
+    user = dict(user or {})
+    base: dict[str, Any] = {"print_time": False, "error_on_fail": False}
+    if solver == "ipopt":
+        base["ipopt"] = {"print_level": 0, "sb": "yes"}
+    elif solver == "sqpmethod":
+        qpsol = str(user.get("qpsol", "qrqp"))
+        base.update(
+            {
+                "qpsol": qpsol,
+                "print_header": False,
+                "print_iteration": False,
+                "print_status": False,
+                "qpsol_options": _deep_merge({"error_on_fail": False}, _QUIET_QPSOL.get(qpsol, {})),
+            }
+        )
+    return _deep_merge(base, user)
+
+
+class GaussPseudospectralSolver:
+    """Builds the LG pseudospectral NLP of a problem once and solves it many times.
+
+    Everything that may change between solves is an input of the CasADi NLP solver, not a
+    rebuild: the parameter vector ``p`` (NLP parameter), the initial state (bounds of X_0) and the
+    initial guess / multipliers (warm start).
+
+    Example:
+        >>> solver = GaussPseudospectralSolver(problem, n_nodes=10)   # doctest: +SKIP
+        >>> sol = solver.solve(p=p0)                                  # doctest: +SKIP
+        >>> sol = solver.solve(p=p1, x0=x_now, initial_guess=sol.shift(0.05))  # doctest: +SKIP
+
+    Args:
+        problem: the optimal control problem.
+        n_nodes: K, LG nodes per mesh interval (>= 1).
+        n_intervals: S, number of equal mesh intervals (ignored if ``mesh`` is given).
+        mesh: optional (S + 1,) increasing interval boundaries as fractions of the horizon,
+            from 0 to 1 (e.g. ``[0, 0.2, 1]``).
+        solver: CasADi nlpsol plugin: ``'ipopt'`` (default), ``'sqpmethod'``, ``'fatrop'``, ...
+        solver_options: CasADi options (nested format) merged over quiet defaults, see
+            :func:`default_solver_options`.
+        expand: expand the MX graph to SX before solving (faster evaluation). Default: True if
+            the problem's callables could be evaluated with SX symbols, else False (e.g. external
+            functions or callbacks).
+        jit: compile the NLP functions to C with the system compiler (CasADi JIT, opt-in).
+            Compilation costs ~1 s or more once at construction; evaluation gets faster.
+        jit_flags: compiler flags for JIT (default ``["-O1"]``).
+    """
+
+    def __init__(
+        self,
+        problem: OptimalControlProblem,
+        n_nodes: int = 10,
+        n_intervals: int = 1,
+        mesh: Sequence[float] | None = None,
+        solver: str = "ipopt",
+        solver_options: Mapping[str, Any] | None = None,
+        expand: bool | None = None,
+        jit: bool = False,
+        jit_flags: Sequence[str] | None = None,
+    ) -> None:
+        if not isinstance(problem, OptimalControlProblem):
+            raise ValueError("problem must be an OptimalControlProblem")
+        if isinstance(n_nodes, bool) or not isinstance(n_nodes, (int, np.integer)) or n_nodes < 1:
+            raise ValueError(f"n_nodes must be an integer >= 1, got {n_nodes!r}")
+        if mesh is None:
+            if (
+                isinstance(n_intervals, bool)
+                or not isinstance(n_intervals, (int, np.integer))
+                or n_intervals < 1
+            ):
+                raise ValueError(f"n_intervals must be an integer >= 1, got {n_intervals!r}")
+            mesh_arr = np.linspace(0.0, 1.0, int(n_intervals) + 1)
+        else:
+            mesh_arr = np.asarray(mesh, dtype=float).ravel()
+            if (
+                mesh_arr.size < 2
+                or not np.all(np.isfinite(mesh_arr))
+                or mesh_arr[0] != 0.0
+                or mesh_arr[-1] != 1.0
+                or np.any(np.diff(mesh_arr) <= 0.0)
+            ):
+                raise ValueError(
+                    "mesh must be strictly increasing fractions of the horizon from 0 to 1, "
+                    f"got {mesh_arr}"
+                )
+        if not ca.has_nlpsol(solver):
+            raise ValueError(f"CasADi NLP solver plugin {solver!r} is not available")
+
+        self.problem = problem
+        self.n_nodes = int(n_nodes)
+        self.mesh = mesh_arr
+        self.n_intervals = int(mesh_arr.size - 1)
+        self.solver_name = solver
+        if expand is None:
+            expand = problem.functions().node.is_a("SXFunction")
+        self.expand = bool(expand)
+        self.jit = bool(jit)
+        opts = default_solver_options(solver, solver_options)
+        if self.jit:
+            opts = _deep_merge(
+                {
+                    "jit": True,
+                    "compiler": "shell",
+                    "jit_options": {"flags": list(jit_flags or ["-O1"]), "verbose": False},
+                },
+                opts,
+            )
+        self.solver_options = opts
+
+        K = self.n_nodes
+        self._tau_nodes, self._weights = legendre_gauss(K)
+        self._tau_support = support_points(K)
+        self._D = differentiation_matrix(K)
+        # Fraction of the horizon at which each support point / node lies: (S(K+1)+1,), (SK,)
+        frac_a, frac_len = mesh_arr[:-1], np.diff(mesh_arr)
+        frac_support = (
+            frac_a[:, None] + 0.5 * (self._tau_support[None, :] + 1.0) * frac_len[:, None]
+        )
+        self._frac_support = np.concatenate([frac_support.ravel(), [1.0]])
+        self._frac_nodes = (
+            frac_a[:, None] + 0.5 * (self._tau_nodes[None, :] + 1.0) * frac_len[:, None]
+        ).ravel()
+        self._frac_len = frac_len
+        self._structure = (id(self), K, tuple(mesh_arr.tolist()))
+        self._build()
+
+    # ------------------------------------------------------------------ sizes
+    @property
+    def n_states(self) -> int:
+        """State dimension n."""
+        return self.problem.n_states
+
+    @property
+    def n_controls(self) -> int:
+        """Control dimension m."""
+        return self.problem.n_controls
+
+    @property
+    def n_points(self) -> int:
+        """Number N = S (K + 1) + 1 of state points (support points of all intervals, plus X_f)."""
+        return self.n_intervals * (self.n_nodes + 1) + 1
+
+    @property
+    def n_collocation(self) -> int:
+        """Number M = S K of collocation nodes."""
+        return self.n_intervals * self.n_nodes
+
+    @property
+    def n_variables(self) -> int:
+        """Number of NLP decision variables."""
+        return int(self._nlp_x_size)
+
+    @property
+    def n_constraints(self) -> int:
+        """Number of NLP constraints."""
+        return int(self._nlp_g_size)
+
+    def state_times(self, tf: float | None = None) -> FloatArray:
+        """Times of the N state points for a given tf (default: fixed tf or tf guess), (N,)."""
+        tf = self._tf_value(tf)
+        return self.problem.t0 + (tf - self.problem.t0) * self._frac_support
+
+    def node_times(self, tf: float | None = None) -> FloatArray:
+        """Times of the M collocation nodes for a given tf, (M,)."""
+        tf = self._tf_value(tf)
+        return self.problem.t0 + (tf - self.problem.t0) * self._frac_nodes
+
+    def _tf_value(self, tf: float | None) -> float:
+        pb = self.problem
+        if pb.tf is not None:
+            return pb.tf
+        if tf is not None:
+            return float(tf)
+        if pb.tf_guess is not None:
+            return pb.tf_guess
+        lo, hi = pb.tf_bounds
+        if np.isfinite(hi):
+            return 0.5 * (lo + hi) if lo > pb.t0 else pb.t0 + 0.5 * (hi - pb.t0)
+        return max(lo, pb.t0 + 1.0)
+
+    # ------------------------------------------------------------------ NLP construction
+    def _build(self) -> None:
+        pb = self.problem
+        fns = pb.functions()
+        n, m, n_p = pb.n_states, pb.n_controls, pb.n_params
+        K, S = self.n_nodes, self.n_intervals
+        N, M = self.n_points, self.n_collocation
+
+        X = ca.MX.sym("X", n, N)
+        U = ca.MX.sym("U", m, M)
+        P = ca.MX.sym("p", n_p)
+        if pb.free_final_time:
+            tf_sym = ca.MX.sym("tf")
+            tf_expr: ca.MX = tf_sym
+            w = ca.vertcat(ca.vec(X), ca.vec(U), tf_sym)
+        else:
+            tf_expr = ca.MX(pb.tf)
+            w = ca.vertcat(ca.vec(X), ca.vec(U))
+
+        node_cols = [s * (K + 1) + k for s in range(S) for k in range(1, K + 1)]
+        start_cols = [s * (K + 1) for s in range(S)]
+        end_cols = [(s + 1) * (K + 1) for s in range(S)]
+
+        # Dynamics, running cost and path constraints at all M nodes through one mapped call.
+        node_map = fns.node.map(M)
+        F, L, C = node_map(X[:, node_cols], U, ca.repmat(P, 1, M))
+
+        # Half interval lengths h_s per node column: (1, M); h_s = (tf - t0)/2 * frac_len_s.
+        half_span = 0.5 * (tf_expr - pb.t0)
+        h_row = half_span * ca.DM(np.repeat(self._frac_len, K)[None, :])
+
+        # Block-diagonal differentiation and quadrature matrices (sparse constants).
+        rows, cols, vals = [], [], []
+        for s in range(S):
+            for k in range(K):
+                for i in range(K + 1):
+                    rows.append(s * (K + 1) + i)
+                    cols.append(s * K + k)
+                    vals.append(self._D[k, i])
+        D_big = ca.DM(ca.Sparsity.triplet(N, M, rows, cols), vals)
+        q_rows = [s * K + k for s in range(S) for k in range(K)]
+        q_cols = [s for s in range(S) for _ in range(K)]
+        W_big = ca.DM(ca.Sparsity.triplet(M, S, q_rows, q_cols), np.tile(self._weights, S))
+
+        hF = F * ca.repmat(h_row, n, 1)  # (n, M): h_s f at the nodes
+        defects = ca.mtimes(X, D_big) - hF  # paper eq. (AC)
+        quadrature = X[:, end_cols] - X[:, start_cols] - ca.mtimes(hF, W_big)  # paper eq. (QC)
+        phi, b = fns.boundary(X[:, 0], X[:, N - 1], tf_expr, P)
+        cost = phi + ca.mtimes(L * h_row, ca.DM(np.tile(self._weights, S)))  # paper eq. (DBP)
+
+        g = ca.vertcat(ca.vec(defects), ca.vec(quadrature), ca.vec(C), b)
+        self._nlp_x_size = int(w.shape[0])
+        self._nlp_g_size = int(g.shape[0])
+        self._n_defect = n * M
+        self._n_quad = n * S
+
+        # Constant bounds (the X_0 block is overwritten per solve if x0 is given).
+        lbx_X = np.tile(pb.x_lb[:, None], (1, N))
+        ubx_X = np.tile(pb.x_ub[:, None], (1, N))
+        lbx_X[:, 0], ubx_X[:, 0] = pb.x0_lb, pb.x0_ub
+        lbx_X[:, -1], ubx_X[:, -1] = pb.xf_lb, pb.xf_ub
+        lbx = [lbx_X.ravel(order="F"), np.tile(pb.u_lb, M)]
+        ubx = [ubx_X.ravel(order="F"), np.tile(pb.u_ub, M)]
+        if pb.free_final_time:
+            lbx.append([pb.tf_bounds[0]])
+            ubx.append([pb.tf_bounds[1]])
+        self._lbx = np.concatenate(lbx).astype(float)
+        self._ubx = np.concatenate(ubx).astype(float)
+        zeros = np.zeros(n * M + n * S)
+        self._lbg = np.concatenate([zeros, np.tile(pb.path_lb, M), pb.boundary_lb])
+        self._ubg = np.concatenate([zeros, np.tile(pb.path_ub, M), pb.boundary_ub])
+
+        nlp = {"x": w, "p": P, "f": cost, "g": g}
+        opts = dict(self.solver_options)
+        opts.setdefault("expand", self.expand)
+        self._solver = ca.nlpsol("gpm_nlp", self.solver_name, nlp, opts)
+
+    # ------------------------------------------------------------------ initial guesses
+    def _default_guess(self, x0: FloatArray | None) -> tuple[FloatArray, FloatArray, float]:
+        """Straight line from the initial to the terminal state, mid-range controls."""
+        pb = self.problem
+
+        def _mid(lb: FloatArray, ub: FloatArray, fallback: FloatArray) -> FloatArray:
+            out = fallback.copy()
+            both = np.isfinite(lb) & np.isfinite(ub)
+            out[both] = 0.5 * (lb[both] + ub[both])
+            out = np.where(np.isfinite(lb) & ~np.isfinite(ub), np.maximum(out, lb), out)
+            out = np.where(~np.isfinite(lb) & np.isfinite(ub), np.minimum(out, ub), out)
+            return out
+
+        start = x0 if x0 is not None else _mid(pb.x0_lb, pb.x0_ub, np.zeros(pb.n_states))
+        end = _mid(pb.xf_lb, pb.xf_ub, start)
+        frac = self._frac_support[:, None]
+        X = (1.0 - frac) * start[None, :] + frac * end[None, :]
+        u_mid = _mid(pb.u_lb, pb.u_ub, np.zeros(pb.n_controls))
+        U = np.tile(u_mid, (self.n_collocation, 1))
+        return X, U, self._tf_value(None)
+
+    def _guess_from(self, guess: TrajectoryLike) -> tuple[FloatArray, FloatArray, float]:
+        tf = self._tf_value(getattr(guess, "tf", None))
+        X = np.asarray(guess.state(self.state_times(tf)), dtype=float)
+        U = np.asarray(guess.control(self.node_times(tf)), dtype=float)
+        if X.shape != (self.n_points, self.n_states):
+            raise ValueError(
+                f"initial guess state has {X.shape[-1]} components, expected {self.n_states}"
+            )
+        if U.shape != (self.n_collocation, self.n_controls):
+            raise ValueError(
+                f"initial guess control has {U.shape[-1]} components, expected {self.n_controls}"
+            )
+        return X, U, tf
+
+    def _pack(self, X: FloatArray, U: FloatArray, tf: float) -> FloatArray:
+        parts = [X.T.ravel(order="F"), U.T.ravel(order="F")]
+        if self.problem.free_final_time:
+            parts.append([tf])
+        return np.concatenate(parts)
+
+    # ------------------------------------------------------------------ solve
+    def solve(
+        self,
+        p: ArrayLike | None = None,
+        x0: ArrayLike | None = None,
+        initial_guess: OCPSolution | InitialGuess | TrajectoryLike | None = None,
+        warm_start_multipliers: bool = True,
+    ) -> OCPSolution:
+        """Solve the NLP for one parameter value.
+
+        A failed solve (infeasible, iteration limit, NaN during evaluation, solver exception)
+        returns an :class:`OCPSolution` with ``success=False`` and the status string; it does not
+        raise.
+
+        Args:
+            p: parameter vector (n_p,); required iff the problem declares ``n_params > 0``.
+            x0: if given, fixes the initial state X(t0) = x0 (n,) for this solve, replacing the
+                problem's initial-state bounds (no rebuild: these are NLP variable bounds). It is
+                not checked against the state bounds (a measured state may violate them).
+            initial_guess: None (straight-line default guess), a previous :class:`OCPSolution`
+                (its interpolant is sampled; if it comes from this solver its raw primal and dual
+                vectors are reused exactly), an :class:`InitialGuess` (e.g. ``sol.shift(dt)``),
+                or any object with ``state(t)``, ``control(t)`` and ``tf``.
+            warm_start_multipliers: pass the multipliers of a previous solution of this solver as
+                ``lam_x0`` / ``lam_g0`` (used by IPOPT only with ``warm_start_init_point yes``).
+
+        Returns:
+            The solution.
+
+        Raises:
+            ValueError: wrong shapes, or NaN/inf in ``p``, ``x0`` or the initial guess.
+        """
+        pb = self.problem
+        n = pb.n_states
+        if p is None:
+            if pb.n_params:
+                raise ValueError(f"this problem declares n_params={pb.n_params}: pass p")
+            p_arr = np.zeros(0)
+        else:
+            p_arr = np.asarray(p, dtype=float).ravel()
+            if p_arr.size != pb.n_params:
+                raise ValueError(f"p must have {pb.n_params} entries, got {p_arr.size}")
+            if not np.all(np.isfinite(p_arr)):
+                raise ValueError(f"p contains NaN or inf: {p_arr}")
+        x0_arr: FloatArray | None = None
+        if x0 is not None:
+            x0_arr = np.asarray(x0, dtype=float).ravel()
+            if x0_arr.size != n:
+                raise ValueError(f"x0 must have {n} entries, got {x0_arr.size}")
+            if not np.all(np.isfinite(x0_arr)):
+                raise ValueError(f"x0 contains NaN or inf: {x0_arr}")
+
+        lbx, ubx = self._lbx.copy(), self._ubx.copy()
+        if x0_arr is not None:
+            lbx[:n] = x0_arr
+            ubx[:n] = x0_arr
+
+        args: dict[str, Any] = {"p": p_arr, "lbg": self._lbg, "ubg": self._ubg}
+        if (
+            isinstance(initial_guess, OCPSolution)
+            and initial_guess.structure == self._structure
+            and initial_guess.nlp_x is not None
+            and np.all(np.isfinite(initial_guess.nlp_x))
+        ):
+            # Same transcription: reuse the raw primal (and dual) vectors exactly.
+            w0 = initial_guess.nlp_x.copy()
+            if warm_start_multipliers and initial_guess.nlp_lam_g is not None:
+                lam_g = initial_guess.nlp_lam_g
+                lam_x = initial_guess.nlp_lam_x
+                if lam_x is not None and np.all(np.isfinite(lam_g)) and np.all(np.isfinite(lam_x)):
+                    args["lam_g0"] = lam_g
+                    args["lam_x0"] = lam_x
+        else:
+            if initial_guess is None:
+                X, U, tf_guess = self._default_guess(x0_arr)
+            else:
+                X, U, tf_guess = self._guess_from(initial_guess)
+                if not (np.all(np.isfinite(X)) and np.all(np.isfinite(U))):
+                    raise ValueError("initial guess contains NaN or inf")
+            w0 = self._pack(X, U, tf_guess)
+        if x0_arr is not None:
+            w0[:n] = x0_arr
+        # Start inside the bounds (IPOPT would push the point in anyway; sqpmethod would not).
+        w0 = np.minimum(np.maximum(w0, lbx), ubx)
+        args.update({"x0": w0, "lbx": lbx, "ubx": ubx})
+
+        t_start = time.perf_counter()
+        try:
+            res = self._solver(**args)
+            error: str | None = None
+        except RuntimeError as err:  # CasADi raises on evaluation errors with some plugins
+            res, error = None, str(err).strip().splitlines()[-1] if str(err).strip() else "error"
+        solve_time = time.perf_counter() - t_start
+        try:
+            stats = dict(self._solver.stats())
+        except RuntimeError:  # no stats after an early failure
+            stats = {}
+        return self._make_solution(res, stats, error, solve_time, p_arr, w0)
+
+    # ------------------------------------------------------------------ solution assembly
+    def _make_solution(
+        self,
+        res: Mapping[str, Any] | None,
+        stats: dict[str, Any],
+        error: str | None,
+        solve_time: float,
+        p_arr: FloatArray,
+        w0: FloatArray,
+    ) -> OCPSolution:
+        pb = self.problem
+        n, m = pb.n_states, pb.n_controls
+        K, S, N, M = self.n_nodes, self.n_intervals, self.n_points, self.n_collocation
+        if res is None:
+            w = w0.copy()
+            lam_x = np.full(self._nlp_x_size, np.nan)
+            lam_g = np.full(self._nlp_g_size, np.nan)
+            cost = float("nan")
+            status = f"Exception: {error}"
+            success = False
+        else:
+            w = np.asarray(res["x"], dtype=float).ravel()
+            lam_x = np.asarray(res["lam_x"], dtype=float).ravel()
+            lam_g = np.asarray(res["lam_g"], dtype=float).ravel()
+            cost = float(res["f"])
+            status = str(stats.get("return_status", "unknown"))
+            success = bool(stats.get("success", False))
+            if not (np.all(np.isfinite(w)) and np.isfinite(cost)):
+                success = False
+                if status in ("Solve_Succeeded", "Solved_To_Acceptable_Level"):
+                    status = "Invalid_Number_Detected"
+        X = w[: n * N].reshape(N, n)
+        U = w[n * N : n * N + m * M].reshape(M, m)
+        tf = float(w[-1]) if pb.free_final_time else float(pb.tf)
+
+        nu = lam_g[: self._n_defect].reshape(M, n).reshape(S, K, n)
+        nu_f = lam_g[self._n_defect : self._n_defect + self._n_quad].reshape(S, n)
+        costate = -(nu / self._weights[None, :, None] + nu_f[:, None, :])
+        costate_final = -nu_f[-1]
+        costate_initial = -nu_f[0] + self._D[:, 0] @ nu[0]
+
+        iters = stats.get("iter_count", -1)
+        return OCPSolution(
+            t0=pb.t0,
+            tf=tf,
+            t=self.state_times(tf),
+            x=X.copy(),
+            t_nodes=self.node_times(tf),
+            u=U.copy(),
+            cost=cost,
+            success=success,
+            status=status,
+            iterations=int(iters) if iters is not None else -1,
+            solve_time=solve_time,
+            costate=costate.reshape(M, n),
+            costate_initial=costate_initial,
+            costate_final=costate_final,
+            n_nodes=K,
+            interval_times=pb.t0 + (tf - pb.t0) * self.mesh,
+            u_lb=pb.u_lb.copy(),
+            u_ub=pb.u_ub.copy(),
+            p=p_arr.copy(),
+            stats=stats,
+            nlp_x=w,
+            nlp_lam_x=lam_x,
+            nlp_lam_g=lam_g,
+            structure=self._structure,
+        )
