@@ -1,0 +1,40 @@
+"""Controllers for the ``gp_envs`` environments.
+
+- :class:`PseudospectralMPC`: Gauss pseudospectral MPC on nominal physics plus a learned GP
+  residual (the paper's Algorithm 1), built with :meth:`PseudospectralMPC.from_env`.
+- Residual learners: :class:`ExactGP`, :class:`SSGP`, :class:`IncrementalSSGP`.
+- :func:`collect_initial_data`: the crude sinusoid-tracking controller's initial data.
+- :class:`RLAgent` (needs the ``rl`` extra): stable-baselines3 policies with the same
+  ``act(obs)`` interface, imported lazily so the rest works without torch.
+
+Layers: ``pseudospectral`` (knows no env, no GP) and ``learners`` (know no MPC) sit below
+``mpc``; benchmarks sit above.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from gp_agents.data import Transitions, collect_initial_data
+from gp_agents.learners import SSGP, ExactGP, IncrementalSSGP
+from gp_agents.mpc import PseudospectralMPC
+from gp_agents.residual import ResidualModel
+
+__all__ = [
+    "SSGP",
+    "ExactGP",
+    "IncrementalSSGP",
+    "PseudospectralMPC",
+    "RLAgent",
+    "ResidualModel",
+    "Transitions",
+    "collect_initial_data",
+]
+
+
+def __getattr__(name: str) -> Any:
+    if name == "RLAgent":  # lazy: stable-baselines3 and torch are an optional extra
+        from gp_agents.rl import RLAgent
+
+        return RLAgent
+    raise AttributeError(f"module 'gp_agents' has no attribute {name!r}")

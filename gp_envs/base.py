@@ -71,6 +71,8 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
     X_UB: ClassVar[np.ndarray]
     """State box; leaving it terminates the episode (with the penalty of :meth:`_penalty`)."""
     ANGLE_INDICES: ClassVar[tuple[int, ...]] = ()
+    DYNAMIC_INDICES: ClassVar[tuple[int, ...]]
+    """State components driven by forces (see :class:`ControlModel`)."""
 
     def __init__(self, scenario: str | None = None, true_params: Mapping[str, float] | None = None,
                  randomize: float = 0.0, render_mode: str | None = None) -> None:
@@ -143,6 +145,7 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
             x_lb=np.asarray(self.X_LB, float), x_ub=np.asarray(self.X_UB, float),
             u_lb=np.asarray(self._spec.u_lb, float), u_ub=np.asarray(self._spec.u_ub, float),
             task=self._task(), substeps=self.SUBSTEPS, angle_indices=self.ANGLE_INDICES,
+            dynamic_indices=self.DYNAMIC_INDICES,
         )
 
     def _oracle(self) -> ControlModel:
@@ -286,7 +289,7 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
             "success": bool(success),
             "is_success": bool(success),  # the key stable-baselines3's callbacks read
             "at_goal": bool(task.at_goal(obs)),
-            "distance_to_goal": float(np.linalg.norm((obs - task.goal)[checked])),
+            "distance_to_goal": float(np.linalg.norm(task.error(obs)[checked])),
             "constraint_violation": violation is not None,
             "violation": violation,
             "termination_reason": reason,

@@ -29,7 +29,8 @@ cartpole_force_bound.py`` measures the smallest feasible bound for the true and 
 
 ## Task, reward, episode
 Swing up and balance at the track centre: goal ``[0, pi, 0, 0]``. Stage cost (per second)
-``l = e' Q e + R f^2``, ``e = obs - goal``, ``Q = diag(2, 2, 0.05, 0.05)``, ``R = 1e-3``; reward per
+``l = e' Q e + R f^2``, ``e = obs - goal`` with the angle error wrapped to ``[-pi, pi]`` (the
+same for either direction of swing-up), ``Q = diag(2, 2, 0.05, 0.05)``, ``R = 1e-3``; reward per
 step ``-dt * l``. Success: ``|x| <= 0.1`` m and ``|theta - pi| <= 0.1`` rad continuously for the
 last 1 s. The episode lasts 6 s (120 steps of 0.05 s, truncation). Leaving the track (or the
 velocity guards) terminates with a penalty of the remaining time times an upper bound of the
@@ -74,13 +75,14 @@ class CartPoleSwingUpEnv(GPEnv):
     X_LB = np.array([-TRACK, -np.inf, -10.0, -25.0])
     X_UB = np.array([TRACK, np.inf, 10.0, 25.0])
     ANGLE_INDICES = (1,)
+    DYNAMIC_INDICES = (2, 3)
 
     def _task(self) -> Task:
         return Task(
             goal=np.array([0.0, np.pi, 0.0, 0.0]),
             Q=diag([2.0, 2.0, 0.05, 0.05]), R=diag([1e-3]), Qf=diag([20.0, 20.0, 1.0, 1.0]),
             u_ref=np.zeros(1), goal_tolerance=np.array([0.1, 0.1, np.inf, np.inf]),
-            hold_time=1.0, duration=6.0,
+            hold_time=1.0, duration=6.0, periodic_indices=(1,),
         )
 
     def _observation_space(self) -> spaces.Box:

@@ -61,6 +61,7 @@ class DubinsObstacleEnv(GPEnv):
     X_LB = np.array([-10.0, -10.0, -np.inf])
     X_UB = np.array([10.0, 10.0, np.inf])
     ANGLE_INDICES = (2,)
+    DYNAMIC_INDICES = (0, 1, 2)
 
     def _task(self) -> Task:
         return Task(
@@ -68,6 +69,7 @@ class DubinsObstacleEnv(GPEnv):
             Q=diag([1.0, 1.0, 0.0]), R=diag([0.05, 0.05]), Qf=diag([10.0, 10.0, 0.0]),
             u_ref=np.zeros(2), goal_tolerance=np.array([0.1, 0.1, np.inf]),
             hold_time=0.5, duration=15.0, obstacles=(OBSTACLE,), body_radius=BODY_RADIUS,
+            periodic_indices=(2,),
         )
 
     def _observation_space(self) -> spaces.Box:

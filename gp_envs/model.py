@@ -51,9 +51,12 @@ class Obstacle:
 class Task:
     """The control task shared by the env's reward and the controllers' cost.
 
-    Stage cost (per second): ``l(x, u) = e' Q e + (u - u_ref)' R (u - u_ref)`` with
-    ``e = x - goal``; the env's reward for one control period is ``-dt * l(x_k, u_k)``.
-    A controller adds ``e' Qf e`` at the end of its horizon.
+    Stage cost (per second): ``l(x, u) = e' Q e + (u - u_ref)' R (u - u_ref)`` with the error
+    ``e = x - goal`` in which each *periodic* component (an angle whose goal is reached from
+    either side, like the upright cart pole) is wrapped to ``[-pi, pi]``, ``atan2(sin e, cos e)``,
+    so that the cost is the same for ``theta`` and ``theta + 2 pi``. The env's reward for one
+    control period is ``-dt * l(x_k, u_k)``; a controller adds ``e' Qf e`` at the end of its
+    horizon (:meth:`terminal_cost`).
 
     Attributes:
         goal: (n,) goal state.
@@ -66,6 +69,7 @@ class Task:
         duration: episode length in seconds (the time limit).
         obstacles: obstacles to keep clear of (position = first two state components).
         body_radius: the vehicle's radius in metres, for obstacle clearance.
+        periodic_indices: state components whose error is wrapped to ``[-pi, pi]``.
     """
 
     goal: np.ndarray
@@ -78,20 +82,42 @@ class Task:
     duration: float
     obstacles: tuple[Obstacle, ...] = ()
     body_radius: float = 0.0
+    periodic_indices: tuple[int, ...] = ()
+
+    def error(self, x: np.ndarray | ca.SX | ca.MX) -> np.ndarray | ca.SX | ca.MX:
+        """``e = x - goal`` with periodic components wrapped; (n,) numeric or (n, 1) symbolic."""
+        if isinstance(x, (ca.SX, ca.MX)):
+            e = x - ca.DM(self.goal)
+            if not self.periodic_indices:
+                return e
+            parts = [ca.atan2(ca.sin(e[i]), ca.cos(e[i])) if i in self.periodic_indices
+                     else e[i] for i in range(e.shape[0])]
+            return ca.vertcat(*parts)
+        e = np.asarray(x, dtype=float) - self.goal
+        for i in self.periodic_indices:
+            e[..., i] = np.arctan2(np.sin(e[..., i]), np.cos(e[..., i]))
+        return e
 
     def stage_cost(self, x: np.ndarray, u: np.ndarray) -> float | ca.SX:
         """``l(x, u)`` (see class doc); numeric for arrays, symbolic for CasADi inputs."""
-        e = x - self.goal
-        du = u - self.u_ref
         if isinstance(x, (ca.SX, ca.MX)) or isinstance(u, (ca.SX, ca.MX)):
-            return ca.bilin(self.Q, e, e) + ca.bilin(self.R, du, du)
-        e = np.asarray(e, dtype=float)
-        du = np.asarray(du, dtype=float)
+            e = self.error(x if isinstance(x, (ca.SX, ca.MX)) else ca.DM(x))
+            du = u - ca.DM(self.u_ref)
+            return ca.bilin(ca.DM(self.Q), e, e) + ca.bilin(ca.DM(self.R), du, du)
+        e = self.error(x)
+        du = np.asarray(u, dtype=float) - self.u_ref
         return float(e @ self.Q @ e + du @ self.R @ du)
 
+    def terminal_cost(self, x: np.ndarray | ca.SX | ca.MX) -> float | ca.SX:
+        """``e' Qf e`` for a controller's horizon end; numeric or symbolic like :meth:`error`."""
+        e = self.error(x)
+        if isinstance(e, (ca.SX, ca.MX)):
+            return ca.bilin(ca.DM(self.Qf), e, e)
+        return float(e @ self.Qf @ e)
+
     def at_goal(self, x: np.ndarray) -> bool:
-        """True when every component is within ``goal_tolerance`` of the goal."""
-        return bool(np.all(np.abs(np.asarray(x) - self.goal) <= self.goal_tolerance))
+        """True when every component is within ``goal_tolerance`` of the goal (errors wrapped)."""
+        return bool(np.all(np.abs(self.error(x)) <= self.goal_tolerance))
 
 
 @dataclass(frozen=True)
@@ -111,6 +137,10 @@ class ControlModel:
         task: the control task.
         substeps: RK4 substeps per control period used by :meth:`step`.
         angle_indices: indices of state components that are angles (radians).
+        dynamic_indices: indices of the components whose rates come from forces (accelerations,
+            or for a kinematic vehicle its actuated rates), as opposed to kinematic identities
+            such as ``d(x)/dt = xdot`` that no parameter can make wrong. A learned residual
+            belongs on these.
     """
 
     name: str
@@ -127,6 +157,7 @@ class ControlModel:
     task: Task
     substeps: int = 10
     angle_indices: tuple[int, ...] = ()
+    dynamic_indices: tuple[int, ...] = ()
     _fns: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -173,6 +204,7 @@ class ControlModel:
             state_names=self.state_names, control_names=self.control_names, dt=self.dt,
             x_lb=self.x_lb, x_ub=self.x_ub, u_lb=self.u_lb, u_ub=self.u_ub, task=self.task,
             substeps=self.substeps, angle_indices=self.angle_indices,
+            dynamic_indices=self.dynamic_indices,
         )
 
     # ----------------------------------------------------------------- CasADi functions
@@ -189,15 +221,9 @@ class ControlModel:
                 cache[key] = ca.Function("f", [x, u, p], [self.ode(x, u, p)],
                                          ["x", "u", "p"], ["xdot"])
             elif key == "step":
-                h = self.dt / self.substeps
-                xk = x
-                for _ in range(self.substeps):
-                    k1 = self.ode(xk, u, p)
-                    k2 = self.ode(xk + h / 2 * k1, u, p)
-                    k3 = self.ode(xk + h / 2 * k2, u, p)
-                    k4 = self.ode(xk + h * k3, u, p)
-                    xk = xk + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-                cache[key] = ca.Function("step", [x, u, p], [xk], ["x", "u", "p"], ["x_next"])
+                x_next = rk4(lambda xx: self.ode(xx, u, p), x, self.dt, self.substeps)
+                cache[key] = ca.Function("step", [x, u, p], [x_next], ["x", "u", "p"],
+                                         ["x_next"])
             else:  # pragma: no cover - internal keys only
                 raise KeyError(key)
         return cache[key]
@@ -267,6 +293,27 @@ class ControlModel:
 
 
 _FUNCTION_CACHE: dict[tuple, dict[str, ca.Function]] = {}
+
+
+def rk4(rate: Callable[[ca.SX], ca.SX], x: ca.SX, duration: float, substeps: int) -> ca.SX:
+    """Classical Runge-Kutta (RK4) integration of ``xdot = rate(x)`` over ``duration``.
+
+    Args:
+        rate: the right-hand side with the control held constant (zero-order hold).
+        x: (n,) initial state (CasADi expression).
+        duration: seconds to integrate. substeps: equal RK4 steps.
+
+    Returns:
+        (n,) state after ``duration`` (CasADi expression).
+    """
+    h = duration / substeps
+    for _ in range(substeps):
+        k1 = rate(x)
+        k2 = rate(x + h / 2 * k1)
+        k3 = rate(x + h / 2 * k2)
+        k4 = rate(x + h * k3)
+        x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    return x
 
 
 def diag(values: Sequence[float]) -> np.ndarray:

@@ -68,6 +68,7 @@ class QuadrotorEnv(GPEnv):
     X_LB = np.array([-3.0, -3.0, -2.0, -1.0, -1.0, -np.pi] + [-10.0] * 3 + [-20.0] * 3)
     X_UB = np.array([3.0, 3.0, 4.0, 1.0, 1.0, np.pi] + [10.0] * 3 + [20.0] * 3)
     ANGLE_INDICES = (3, 4, 5)
+    DYNAMIC_INDICES = (6, 7, 8, 9, 10, 11)
 
     def _task(self) -> Task:
         hover = self.SCENARIOS[self.scenario].nominal["m"] * G / 4

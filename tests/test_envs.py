@@ -173,7 +173,7 @@ def test_halving_rk4_substeps_changes_trajectory_negligibly(env_id):
 def _fields(model):
     return {k: getattr(model, k) for k in (
         "name", "ode", "param_names", "params", "state_names", "control_names", "dt", "x_lb",
-        "x_ub", "u_lb", "u_ub", "task", "substeps", "angle_indices")}
+        "x_ub", "u_lb", "u_ub", "task", "substeps", "angle_indices", "dynamic_indices")}
 
 
 # ------------------------------------------------------------------------ Gymnasium conventions

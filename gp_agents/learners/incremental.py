@@ -1,0 +1,256 @@
+"""Incremental Sparse Spectrum GP with exponential forgetting (paper, Section "Online model
+learning"; errata note 4; Gijsberts & Metta 2013).
+
+State per output ``j`` after ``n`` samples (standardized units, ``phi_i = phi(z_i)``)::
+
+    A_n = P_n + sum_{i=1..n} lambda^(n-i) phi_i phi_i^T,     A_n = R_n^T R_n  (R upper)
+    b_n =       sum_{i=1..n} lambda^(n-i) phi_i y_i,          w = R^{-1} (R^{-T} b)
+
+*Scaling.* Data enter with weight 1 (``A <- lambda A + phi phi^T``), not ``(1 - lambda)`` as in
+the paper: the two differ only by the factor ``1/(1 - lambda)`` on the prior's relative weight,
+and the unscaled form makes ``lambda = 1`` exactly the batch SSGP (``A = Phi Phi^T +
+sigma_n^2 I``) and keeps the prior at its Bayesian weight ``sigma_n^2`` for every ``lambda``.
+
+*Prior.* Forgetting the prior as well (``P_n = lambda^n sigma_n^2 I``) lets ``A`` become singular
+once the data stop exciting every feature (e.g. while the controller holds the pole upright).
+Keeping ``P_n = sigma_n^2 I`` exactly would need a full-rank update per sample. Instead the
+prior is re-injected one coordinate at a time (cyclic "dynamic regularization", Gay 1996):
+at sample ``n`` the ``m = prior_refresh`` coordinates at positions ``(n-1) m, ..., n m - 1``
+(mod ``D = 2r``) are restored to ``sigma_n^2``, and the others decay with ``lambda``. Hence
+exactly
+
+    P_n = sigma_n^2 diag(lambda^(a_1(n)), ..., lambda^(a_D(n))),
+
+where ``a_k(n)`` is the number of samples since coordinate ``k`` was last restored (``n`` if
+never; see :func:`prior_ages`). Every ``a_k <= ceil(D/m) - 1`` once ``n >= ceil(D/m)``, so
+
+    sigma_n^2 lambda^(ceil(D/m) - 1) I <= P_n <= sigma_n^2 I
+
+for all ``n``: the smallest eigenvalue of ``A`` never decays, whatever the data. With ``m >= D``
+the prior is exactly ``sigma_n^2 I`` (at ``O(r^3)`` per sample); ``lambda = 1`` needs no refresh.
+
+*Update.* A batch of ``p`` samples is one factor update: ``R <- chol(lambda^p R^T R + B^T B)``
+with the rows ``B = [sqrt(lambda^(p-1-i)) phi_i^T ; sqrt(delta_k) e_k^T]`` (data, then the
+restored prior amounts ``delta_k``), done by :func:`cholesky_add_rows` in ``O((p + m p) r^2)``;
+``b <- lambda^p b + sum_i lambda^(p-1-i) phi_i y_i``. Hyperparameters, frequencies and the
+standardization are frozen at :meth:`IncrementalSSGP.fit`, so the CasADi parameter vector keeps
+its size.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+from scipy.linalg import cholesky
+
+from ._validation import check_training_data
+from .cholesky_update import cholesky_add_rows
+from .features import fourier_features
+from .hyperparameters import GPHyperparameters, HyperparameterBounds
+from .ssgp import SSGP, HyperparameterSource
+from .standardization import Standardizer
+
+__all__ = ["IncrementalSSGP", "prior_ages"]
+
+_FORMAT_VERSION = 1
+
+
+def prior_ages(n: int, n_features: int, refresh: int) -> np.ndarray:
+    """Samples since each prior coordinate was last restored, after ``n`` samples.
+
+    Refresh positions run ``0, 1, 2, ...``; sample ``t`` (1-based) restores positions
+    ``(t-1) m .. t m - 1``, position ``q`` being coordinate ``q mod D``.
+
+    Args:
+        n: samples processed so far (>= 0).
+        n_features: ``D``.
+        refresh: ``m`` coordinates restored per sample (>= 1).
+
+    Returns:
+        (D,) integer ages ``a_k(n)`` (``n`` for a coordinate never restored).
+    """
+    k = np.arange(n_features)
+    if n == 0:
+        return np.zeros(n_features, dtype=np.int64)
+    q_last = n * refresh - 1
+    q_k = q_last - np.mod(q_last - k, n_features)  # last position that hit coordinate k
+    return np.where(q_k < 0, n, n - (q_k // refresh + 1)).astype(np.int64)
+
+
+class IncrementalSSGP(SSGP):
+    """SSGP updated online in ``O(r^2)`` per sample, with forgetting factor ``lambda``.
+
+    Args:
+        n_frequencies: ``r`` (``2r`` features per output).
+        forgetting_factor: ``lambda`` in (0, 1]; 1 keeps every sample with equal weight.
+        prior_refresh: prior coordinates restored per sample (``m`` in the module docstring).
+        hyperparameters, bounds, n_restarts, max_iter, max_optimization_samples, normalize,
+        random_state: as in :class:`SSGP` (used once, by :meth:`fit`).
+
+    Fitted attributes: those of :class:`SSGP`, with ``n_samples_seen_`` counting every sample
+    since :meth:`fit` (initial batch included).
+    """
+
+    def __init__(
+        self,
+        n_frequencies: int = 100,
+        *,
+        forgetting_factor: float = 1.0,
+        prior_refresh: int = 1,
+        hyperparameters: HyperparameterSource = "ssgp",
+        bounds: HyperparameterBounds | None = None,
+        n_restarts: int = 2,
+        max_iter: int = 200,
+        max_optimization_samples: int | None = 2000,
+        normalize: bool = True,
+        random_state: int | None = 0,
+    ) -> None:
+        super().__init__(
+            n_frequencies,
+            hyperparameters=hyperparameters,
+            bounds=bounds,
+            n_restarts=n_restarts,
+            max_iter=max_iter,
+            max_optimization_samples=max_optimization_samples,
+            normalize=normalize,
+            random_state=random_state,
+        )
+        self.forgetting_factor = forgetting_factor
+        self.prior_refresh = prior_refresh
+
+    def _check_config(self) -> tuple[float, int]:
+        lam = float(self.forgetting_factor)
+        if not (0.0 < lam <= 1.0):
+            raise ValueError(f"forgetting_factor must be in (0, 1], got {lam}")
+        m = int(self.prior_refresh)
+        if m < 1:
+            raise ValueError(f"prior_refresh must be >= 1, got {m}")
+        return lam, m
+
+    # ------------------------------------------------------------------ fitting
+    def fit(self, Z: np.ndarray, Y: np.ndarray) -> IncrementalSSGP:
+        """Choose hyperparameters/frequencies/standardization on ``Z`` (N, d_in), ``Y``
+        (N, d_out) and set the state to the batch formula over these ``N`` samples (the same
+        state ``N`` sequential updates from the prior would reach). Returns ``self``."""
+        self._check_config()
+        super().fit(Z, Y)
+        return self
+
+    def _batch_state(
+        self, F: np.ndarray, y: np.ndarray, noise_std: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Batch formula of the module docstring for one output, ``n = N`` samples."""
+        lam, m = self._check_config()
+        n, D = F.shape
+        decay = lam ** np.arange(n - 1, -1, -1, dtype=float)  # lambda^(n-i), i = 1..n
+        Fw = F * np.sqrt(decay)[:, None]
+        A = Fw.T @ Fw
+        A[np.diag_indices(D)] += noise_std**2 * lam ** prior_ages(n, D, m).astype(float)
+        R = cholesky(A, lower=False, check_finite=False)
+        return np.asfortranarray(R), F.T @ (decay * y)
+
+    # ------------------------------------------------------------------ online update
+    def update(self, Z: np.ndarray, Y: np.ndarray) -> IncrementalSSGP:
+        """Add ``p`` samples ``Z`` (p, d_in), ``Y`` (p, d_out) in order (the last is newest).
+
+        Costs ``O(p r^2)`` per output. On any error the previous state is left untouched.
+        Returns ``self``.
+        """
+        self._check_fitted()
+        lam, m = self._check_config()
+        Z, Y = check_training_data(Z, Y, self.n_features_in_, self.n_outputs_)
+        std, hyp = self.standardizer_, self.hyperparameters_
+        assert std is not None and hyp is not None
+        Zs, Ys = std.transform_inputs(Z), std.transform_outputs(Y)
+        p = Z.shape[0]
+        n0 = self.n_samples_seen_
+        D = self._chol[0].shape[0]
+        decay = lam ** np.arange(p - 1, -1, -1, dtype=float)
+        if lam < 1.0:
+            a0 = prior_ages(n0, D, m) + p  # ages if nothing were restored
+            a1 = prior_ages(n0 + p, D, m)
+            restored = np.flatnonzero(a1 != a0)
+            old = lam ** a0[restored].astype(float)
+            new = lam ** a1[restored].astype(float)
+        else:
+            restored = np.zeros(0, dtype=np.int64)
+        new_b = np.empty_like(self.b_)
+        rows = []
+        for j in range(self.n_outputs_):
+            F = fourier_features(Zs, self.omega_[j], float(hyp.signal_std[j]))
+            Bj = F * np.sqrt(decay)[:, None]
+            if restored.size:
+                E = np.zeros((restored.size, D))
+                E[np.arange(restored.size), restored] = hyp.noise_std[j] * np.sqrt(new - old)
+                Bj = np.vstack([Bj, E])
+            rows.append(Bj)
+            new_b[j] = lam**p * self.b_[j] + F.T @ (decay * Ys[:, j])
+        # Everything that can fail is checked before the factors are touched: the rows are
+        # bounded (|phi| = sigma_s), so the updated factors are finite whenever these are.
+        if not (np.all(np.isfinite(new_b)) and all(np.all(np.isfinite(B)) for B in rows)):
+            raise FloatingPointError("update produced non-finite values; state left unchanged")
+        new_chol = [
+            cholesky_add_rows(R, B, np.sqrt(lam**p)) for R, B in zip(self._chol, rows, strict=True)
+        ]
+        if not all(np.all(np.isfinite(np.diag(R))) and np.all(np.diag(R) != 0) for R in new_chol):
+            raise FloatingPointError("update produced a singular factor; state left unchanged")
+        self._set_state(new_chol, new_b, n0 + p)
+        return self
+
+    def prior_diagonal(self) -> np.ndarray:
+        """(d_out, 2r) current prior ``P_n`` diagonal, in standardized units."""
+        self._check_fitted()
+        lam, m = self._check_config()
+        hyp = self.hyperparameters_
+        assert hyp is not None
+        D = self._chol[0].shape[0]
+        ages = prior_ages(self.n_samples_seen_, D, m).astype(float)
+        return hyp.noise_std[:, None] ** 2 * lam ** ages[None, :]
+
+    # ------------------------------------------------------------------ persistence
+    def save(self, path: str | os.PathLike[str]) -> None:
+        """Write the full learner state (settings and fitted state) to an ``.npz`` file."""
+        self._check_fitted()
+        std, hyp = self.standardizer_, self.hyperparameters_
+        assert std is not None and hyp is not None
+        rs = self.random_state
+        data: dict[str, np.ndarray] = {
+            "format_version": np.array(_FORMAT_VERSION),
+            "n_frequencies": np.array(int(self.n_frequencies)),
+            "forgetting_factor": np.array(float(self.forgetting_factor)),
+            "prior_refresh": np.array(int(self.prior_refresh)),
+            "normalize": np.array(bool(self.normalize)),
+            "random_state": np.array(-1 if rs is None else int(rs)),
+            "n_samples_seen": np.array(int(self.n_samples_seen_)),
+            "base_frequencies": self.base_frequencies_,
+            "cholesky_factor": np.stack(self._chol),  # raw factors: bit-exact round trip
+            "b": self.b_,
+            **std.to_arrays(),
+            **hyp.to_arrays(),
+        }
+        with open(Path(path), "wb") as fh:
+            np.savez(fh, **data)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> IncrementalSSGP:
+        """Recreate a learner written by :meth:`save`."""
+        with np.load(Path(path), allow_pickle=False) as f:
+            data = {k: f[k] for k in f.files}
+        if int(data["format_version"]) != _FORMAT_VERSION:
+            raise ValueError(f"unsupported file format version {int(data['format_version'])}")
+        hyp = GPHyperparameters.from_arrays(data)
+        rs = int(data["random_state"])
+        obj = cls(
+            int(data["n_frequencies"]),
+            forgetting_factor=float(data["forgetting_factor"]),
+            prior_refresh=int(data["prior_refresh"]),
+            hyperparameters=hyp,
+            normalize=bool(data["normalize"]),
+            random_state=None if rs < 0 else rs,
+        )
+        obj._install(Standardizer.from_arrays(data), hyp, np.asarray(data["base_frequencies"]))
+        chol = [np.asfortranarray(R) for R in np.asarray(data["cholesky_factor"], dtype=float)]
+        obj._set_state(chol, np.asarray(data["b"], dtype=float), int(data["n_samples_seen"]))
+        return obj

@@ -1,0 +1,346 @@
+"""Sparse Spectrum Gaussian Process regression (paper, Section "Sparse Spectrum Gaussian
+Processes"; Lazaro-Gredilla et al. 2010).
+
+Per output ``j`` (standardized units), with ``r`` frequencies and ``D = 2r`` features::
+
+    phi(z) = sigma_s / sqrt(r) [cos(Omega^T z); sin(Omega^T z)],   Omega ~ N(0, W^{-1})
+    A = Phi Phi^T + sigma_n^2 Sigma_p^{-1},  Sigma_p = I,      A = R^T R (R upper)
+    b = Phi y,   w = A^{-1} b = R^{-1} (R^{-T} b)
+    mean(z*) = w^T phi(z*),   var(z*) = sigma_n^2 (1 + phi(z*)^T A^{-1} phi(z*))
+
+``Phi = [phi(z_1), ..., phi(z_N)]`` is (D, N). Hyperparameters are either taken from an exact GP
+(``hyperparameters="exact"`` or a fitted :class:`ExactGP`) or maximize the SSGP's own marginal
+likelihood with the base frequency draws held fixed (``hyperparameters="ssgp"``)::
+
+    -log p(y) = 1/(2 sigma_n^2) (y^T y - b^T w) + 1/2 log|A| + (N - D)/2 log sigma_n^2
+                + N/2 log(2 pi)
+
+(the Woodbury / determinant-lemma form of ``N(y; 0, Phi^T Phi + sigma_n^2 I)``), computed from
+the Cholesky factor of ``A`` in ``O(N D^2 + D^3)``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import casadi as ca
+import numpy as np
+from scipy.linalg import LinAlgError, cho_solve, cholesky, solve_triangular
+
+from ._optimize import minimize_multistart
+from ._validation import NotFittedError, check_training_data
+from .base import BaseGPLearner
+from .casadi_export import sym_fourier_features
+from .cholesky_update import positive_diagonal
+from .exact_gp import ExactGP
+from .features import (
+    draw_base_frequencies,
+    fourier_features,
+    fourier_mean_grad,
+    scale_frequencies,
+)
+from .hyperparameters import GPHyperparameters, HyperparameterBounds
+from .standardization import Standardizer
+
+__all__ = ["SSGP", "ssgp_nlml"]
+
+_LOG_2PI = float(np.log(2.0 * np.pi))
+
+HyperparameterSource = str | ExactGP | GPHyperparameters
+
+
+def ssgp_nlml(
+    theta: np.ndarray, Z: np.ndarray, y: np.ndarray, base: np.ndarray
+) -> tuple[float, np.ndarray]:
+    """SSGP negative log marginal likelihood of one output and its analytic gradient.
+
+    With ``F = Phi^T`` (N, D), residual ``e = y - F w`` and
+    ``G = F A^{-1} - e w^T / sigma_n^2`` (N, D), a change ``dF`` changes the NLML by
+    ``sum(G * dF)``; this gives the length-scale and ``sigma_s`` terms. The noise term is
+    ``-q / sigma_n^2 + w^T w + sigma_n^2 tr(A^{-1}) + N - D`` with ``q = y^T y - b^T w``.
+
+    Args:
+        theta: (d + 2,) ``[log ell, log sigma_s, log sigma_n]``.
+        Z: (N, d) standardized inputs.
+        y: (N,) standardized targets.
+        base: (d, r) fixed standard-normal base frequencies.
+
+    Returns:
+        ``(nlml, gradient (d + 2,))``.
+    """
+    n, d = Z.shape
+    r = base.shape[1]
+    D = 2 * r
+    ell = np.exp(theta[:d])
+    sf = float(np.exp(theta[d]))
+    s = float(np.exp(2.0 * theta[d + 1]))
+    omega = scale_frequencies(base, ell)
+    U = Z @ omega
+    c = sf / np.sqrt(r)
+    cosU, sinU = np.cos(U), np.sin(U)
+    F = c * np.concatenate([cosU, sinU], axis=1)
+    A = F.T @ F
+    A[np.diag_indices(D)] += s
+    R = cholesky(A, lower=False, check_finite=False)
+    b = F.T @ y
+    w = cho_solve((R, False), b, check_finite=False)
+    q = float(y @ y - b @ w)
+    logdet = 2.0 * float(np.log(np.diag(R)).sum())
+    nlml = 0.5 * (q / s + logdet + (n - D) * np.log(s) + n * _LOG_2PI)
+    Rinv = solve_triangular(R, np.eye(D), lower=False, check_finite=False)
+    FAinv = (F @ Rinv) @ Rinv.T
+    e = y - F @ w
+    G = FAinv - np.outer(e, w) / s
+    grad_sf = float(np.sum(G * F))
+    H = c * (G[:, r:] * cosU - G[:, :r] * sinU)  # (N, r): d nlml / d U
+    grad_ell = -np.sum(Z * (H @ omega.T), axis=0)
+    grad_sn = -q / s + float(w @ w) + s * float(np.sum(Rinv * Rinv)) + (n - D)
+    return float(nlml), np.r_[grad_ell, grad_sf, grad_sn]
+
+
+class SSGP(BaseGPLearner):
+    """Batch Sparse Spectrum GP, one independent SSGP per output.
+
+    Args:
+        n_frequencies: ``r`` (the model has ``2r`` features per output).
+        hyperparameters: ``"ssgp"`` (maximize the SSGP marginal likelihood), ``"exact"`` (fit an
+            :class:`ExactGP` on the same data and copy its hyperparameters and standardization),
+            a fitted :class:`ExactGP` (copy its hyperparameters and standardization), or a
+            :class:`GPHyperparameters` in standardized units (used as given).
+        bounds: optimizer box bounds (standardized units).
+        n_restarts: random restarts in addition to the default start.
+        max_iter: L-BFGS-B iterations per run.
+        max_optimization_samples: optimize on at most this many random points (``None``: all).
+        normalize: standardize inputs and outputs (ignored when copying from an ExactGP).
+        random_state: seed of the frequency draws, restarts and subset.
+
+    Fitted attributes:
+        hyperparameters_, standardizer_, base_frequencies_ (d_out, d_in, r), omega_
+        (d_out, d_in, r), cholesky_factor_ (d_out, 2r, 2r) upper ``R`` with ``A = R^T R``,
+        b_ (d_out, 2r), weights_ (d_out, 2r), n_features_in_, n_outputs_, n_samples_seen_.
+    """
+
+    def __init__(
+        self,
+        n_frequencies: int = 100,
+        *,
+        hyperparameters: HyperparameterSource = "ssgp",
+        bounds: HyperparameterBounds | None = None,
+        n_restarts: int = 2,
+        max_iter: int = 200,
+        max_optimization_samples: int | None = 2000,
+        normalize: bool = True,
+        random_state: int | None = 0,
+    ) -> None:
+        self.n_frequencies = n_frequencies
+        self.hyperparameters = hyperparameters
+        self.bounds = bounds
+        self.n_restarts = n_restarts
+        self.max_iter = max_iter
+        self.max_optimization_samples = max_optimization_samples
+        self.normalize = normalize
+        self.random_state = random_state
+
+    # ------------------------------------------------------------------ fitting
+    def fit(self, Z: np.ndarray, Y: np.ndarray) -> SSGP:
+        """Fit on ``Z`` (N, d_in), ``Y`` (N, d_out). Returns ``self``."""
+        Z, Y = check_training_data(Z, Y)
+        if int(self.n_frequencies) < 1:
+            raise ValueError("n_frequencies must be >= 1")
+        std, hyp, base = self._resolve_hyperparameters(Z, Y)
+        Zs, Ys = std.transform_inputs(Z), std.transform_outputs(Y)
+        self._install(std, hyp, base)
+        chol, b = [], []
+        for j in range(Y.shape[1]):
+            F = fourier_features(Zs, self.omega_[j], float(hyp.signal_std[j]))
+            Rj, bj = self._batch_state(F, Ys[:, j], float(hyp.noise_std[j]))
+            chol.append(Rj)
+            b.append(bj)
+        self._set_state(chol, np.array(b), Z.shape[0])
+        return self
+
+    def _resolve_hyperparameters(
+        self, Z: np.ndarray, Y: np.ndarray
+    ) -> tuple[Standardizer, GPHyperparameters, np.ndarray]:
+        d_in, d_out = Z.shape[1], Y.shape[1]
+        r = int(self.n_frequencies)
+        base = draw_base_frequencies(d_out, d_in, r, self.random_state)
+        src = self.hyperparameters
+        if isinstance(src, str) and src == "exact":
+            src = ExactGP(
+                bounds=self.bounds,
+                n_restarts=self.n_restarts,
+                max_iter=self.max_iter,
+                max_optimization_samples=self.max_optimization_samples,
+                normalize=self.normalize,
+                random_state=self.random_state,
+            ).fit(Z, Y)
+        if isinstance(src, ExactGP):
+            if src.standardizer_ is None or src.hyperparameters_ is None:
+                raise NotFittedError("the ExactGP passed as hyperparameters is not fitted")
+            if src.n_features_in_ != d_in or src.n_outputs_ != d_out:
+                raise ValueError("the ExactGP's dimensions do not match the data")
+            return src.standardizer_, src.hyperparameters_, base
+        std = Standardizer.fit(Z, Y, self.normalize)
+        if isinstance(src, GPHyperparameters):
+            if src.d_in != d_in or src.d_out != d_out:
+                raise ValueError("hyperparameters do not match the data dimensions")
+            return std, src, base
+        if not (isinstance(src, str) and src == "ssgp"):
+            raise ValueError(
+                "hyperparameters must be 'ssgp', 'exact', a fitted ExactGP or GPHyperparameters,"
+                f" got {src!r}"
+            )
+        Zs, Ys = std.transform_inputs(Z), std.transform_outputs(Y)
+        rng = np.random.default_rng(self.random_state)
+        bounds = self.bounds or HyperparameterBounds()
+        n = Z.shape[0]
+        idx = np.arange(n)
+        if self.max_optimization_samples is not None and n > self.max_optimization_samples:
+            idx = np.sort(rng.choice(n, self.max_optimization_samples, replace=False))
+        rows = []
+        for j in range(d_out):
+            Zo, yo, bj = Zs[idx], Ys[idx, j], base[j]
+            theta, _ = minimize_multistart(
+                lambda t, Zo=Zo, yo=yo, bj=bj: ssgp_nlml(t, Zo, yo, bj),
+                bounds.initial_guesses(d_in, self.n_restarts, rng),
+                bounds.log_bounds(d_in),
+                self.max_iter,
+            )
+            rows.append(theta)
+        return std, GPHyperparameters.from_log_params(rows), base
+
+    def _install(self, std: Standardizer, hyp: GPHyperparameters, base: np.ndarray) -> None:
+        """Set the data-independent fitted attributes."""
+        self.standardizer_ = std
+        self.hyperparameters_ = hyp
+        self.base_frequencies_ = base
+        self.omega_ = np.stack(
+            [scale_frequencies(base[j], hyp.length_scales[j]) for j in range(hyp.d_out)]
+        )
+        self.n_features_in_ = hyp.d_in
+        self.n_outputs_ = hyp.d_out
+        self._reset_layout()
+
+    def _batch_state(
+        self, F: np.ndarray, y: np.ndarray, noise_std: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Upper factor of ``A = F^T F + sigma_n^2 I`` and ``b = F^T y`` for one output."""
+        A = F.T @ F
+        A[np.diag_indices(A.shape[0])] += noise_std**2
+        try:
+            R = cholesky(A, lower=False, check_finite=False)
+        except LinAlgError as exc:  # A >= sigma_n^2 I, so only on overflow
+            raise RuntimeError("SSGP precision matrix is not positive definite") from exc
+        return np.asfortranarray(R), F.T @ y
+
+    def _set_state(self, chol: list[np.ndarray], b: np.ndarray, n_seen: int) -> None:
+        self._chol = chol
+        self.b_ = b
+        self.n_samples_seen_ = n_seen
+        self._weights_cache: np.ndarray | None = None
+        self._rinv_cache: list[np.ndarray] | None = None
+
+    # ------------------------------------------------------------------ state access
+    @property
+    def cholesky_factor_(self) -> np.ndarray:
+        """(d_out, 2r, 2r) upper-triangular ``R`` with ``A = R^T R`` and a positive diagonal."""
+        self._check_fitted()
+        return np.stack([positive_diagonal(R) for R in self._chol])
+
+    @property
+    def weights_(self) -> np.ndarray:
+        """(d_out, 2r) ``w = A^{-1} b`` by two triangular solves (cached until the next update)."""
+        self._check_fitted()
+        if self._weights_cache is None:
+            self._weights_cache = np.stack(
+                [
+                    solve_triangular(
+                        R,
+                        solve_triangular(R, bj, trans="T", check_finite=False),
+                        check_finite=False,
+                    )
+                    for R, bj in zip(self._chol, self.b_, strict=True)
+                ]
+            )
+        return self._weights_cache
+
+    def _rinv(self) -> list[np.ndarray]:
+        if self._rinv_cache is None:
+            eye = np.eye(self._chol[0].shape[0])
+            self._rinv_cache = [
+                solve_triangular(positive_diagonal(R), eye, check_finite=False) for R in self._chol
+            ]
+        return self._rinv_cache
+
+    # ------------------------------------------------------------------ prediction
+    def _predict_std(self, Zs: np.ndarray, return_var: bool) -> tuple[np.ndarray, Any]:
+        hyp = self.hyperparameters_
+        assert hyp is not None
+        W = self.weights_
+        mean = np.empty((Zs.shape[0], self.n_outputs_))
+        var = np.empty_like(mean) if return_var else None
+        for j in range(self.n_outputs_):
+            F = fourier_features(Zs, self.omega_[j], float(hyp.signal_std[j]))
+            mean[:, j] = F @ W[j]
+            if var is not None:
+                V = solve_triangular(self._chol[j], F.T, trans="T", check_finite=False)
+                var[:, j] = hyp.noise_std[j] ** 2 * (1.0 + np.einsum("ij,ij->j", V, V))
+        return mean, var
+
+    def _gradient_std(self, Zs: np.ndarray) -> np.ndarray:
+        hyp = self.hyperparameters_
+        assert hyp is not None
+        W = self.weights_
+        return np.stack(
+            [
+                fourier_mean_grad(Zs, self.omega_[j], float(hyp.signal_std[j]), W[j])
+                for j in range(self.n_outputs_)
+            ],
+            axis=1,
+        )
+
+    # ------------------------------------------------------------------ CasADi export
+    def _casadi_block_shapes(self) -> list[tuple[str, tuple[int, ...]]]:
+        d, r = self.omega_.shape[1:]
+        shapes: list[tuple[str, tuple[int, ...]]] = []
+        for j in range(self.n_outputs_):
+            shapes += [
+                (f"omega_{j}", (d, r)),
+                (f"sf_{j}", (1,)),
+                (f"sn_{j}", (1,)),
+                (f"w_{j}", (2 * r,)),
+                (f"Rinv_{j}", (2 * r, 2 * r)),
+            ]
+        return shapes
+
+    def _casadi_blocks(self) -> list[tuple[str, np.ndarray]]:
+        """Per output: frequencies, sigma_s, sigma_n, weights, and ``R^{-1}`` (for the variance
+        ``sigma_n^2 (1 + |R^{-T} phi|^2)``)."""
+        hyp = self.hyperparameters_
+        assert hyp is not None
+        W = self.weights_
+        Rinv = self._rinv()
+        blocks: list[tuple[str, np.ndarray]] = []
+        for j in range(self.n_outputs_):
+            blocks += [
+                (f"omega_{j}", self.omega_[j]),
+                (f"sf_{j}", hyp.signal_std[j : j + 1]),
+                (f"sn_{j}", hyp.noise_std[j : j + 1]),
+                (f"w_{j}", W[j]),
+                (f"Rinv_{j}", Rinv[j]),
+            ]
+        return blocks
+
+    def _sym_mean_var(
+        self, zs: ca.SX | ca.MX, theta: ca.SX | ca.MX, j: int, variance: bool
+    ) -> tuple[ca.SX | ca.MX, ca.SX | ca.MX | None]:
+        lay = self._layout()
+        phi = sym_fourier_features(
+            zs, lay.unpack(theta, f"omega_{j}"), lay.unpack(theta, f"sf_{j}")
+        )
+        mean = ca.dot(lay.unpack(theta, f"w_{j}"), phi)
+        if not variance:
+            return mean, None
+        v = ca.mtimes(lay.unpack(theta, f"Rinv_{j}").T, phi)
+        return mean, lay.unpack(theta, f"sn_{j}") ** 2 * (1.0 + ca.sumsqr(v))

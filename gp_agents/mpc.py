@@ -1,0 +1,565 @@
+"""Pseudospectral model predictive control with an online-learned GP residual.
+
+The paper's Algorithm 1 ("Model Predictive Pseudospectral Control with Online Learning"):
+
+1. initialise the (sparse spectrum) GP with initial training data (:meth:`PseudospectralMPC.
+   pretrain`, data from :func:`gp_agents.data.collect_initial_data`);
+2. solve the Gauss pseudospectral OCP from the current state (:mod:`gp_agents.pseudospectral`);
+3. roll out the first ``p`` control periods of the plan (``replan_every``);
+4. update the GP with the ``p`` new transitions (:meth:`PseudospectralMPC.observe`);
+5. warm-start the next solve from the previous plan shifted in time; repeat.
+
+The model is ``xdot = f_nominal(x, u; params) + S * mean_GP(phi(x, u); theta)``
+(:class:`gp_agents.residual.ResidualModel`). The NLP is built once per agent: the nominal
+parameter values, the learner's parameter vector ``theta`` (weights, features, ...) and the
+initial state are NLP parameters, so learning never rebuilds the solver.
+
+**The control applied at the current time.** The Legendre-Gauss control has no node at ``t0``
+(errata note 5) and the plant holds each action for a whole period ``dt``. The agent applies the
+*period mean* of the planned control over ``[t, t + dt]`` (5-point Gauss quadrature of the
+control interpolant), clipped to the bounds: the constant control with the same impulse as the
+plan over the period. ``control_at_t0="extrapolate"`` (the interpolant at ``t0``) and
+``"first_node"`` (the first LG node's value) are available for comparison.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import casadi as ca
+import gymnasium as gym
+import numpy as np
+
+from gp_agents.data import Transitions
+from gp_agents.pseudospectral import (
+    GaussPseudospectralSolver,
+    InitialGuess,
+    OCPSolution,
+    OptimalControlProblem,
+)
+from gp_agents.residual import ResidualModel
+from gp_envs.model import ControlModel
+
+ControlAtT0 = Literal["period_mean", "extrapolate", "first_node"]
+
+DEFAULT_SETTINGS: dict[str, dict[str, Any]] = {
+    "cartpole": {"horizon": 1.5, "n_nodes": 16, "n_intervals": 1},
+    "quadrotor": {"horizon": 1.5, "n_nodes": 10, "n_intervals": 1},
+    "dubins": {"horizon": 4.0, "n_nodes": 12, "n_intervals": 2},
+}
+"""Receding-horizon settings per system (horizon in seconds, LG nodes per interval)."""
+
+EPISODIC_SETTINGS: dict[str, dict[str, Any]] = {
+    "cartpole": {"n_nodes": 12, "n_intervals": 6},
+    "quadrotor": {"n_nodes": 10, "n_intervals": 6},
+    "dubins": {"n_nodes": 12, "n_intervals": 5},
+}
+"""Settings of the episodic (plan once over the whole task) mode."""
+
+_PERIOD_QUADRATURE = np.polynomial.legendre.leggauss(5)
+"""Gauss-Legendre rule for the period mean of the control (exact to degree 9)."""
+
+
+@dataclass
+class StepRecord:
+    """Diagnostics of one :meth:`PseudospectralMPC.act` call.
+
+    Attributes:
+        step: control period index since the last reset.
+        replanned: whether an OCP was solved in this call.
+        success: solver success of that solve (True when not replanned).
+        status: solver status string (``"reuse"`` when not replanned).
+        iterations: NLP iterations (0 when not replanned).
+        solve_time: seconds spent in the NLP solver.
+        act_time: seconds spent in the whole ``act`` call (learning update included).
+        fallback: the applied control came from the previous plan because the solve failed.
+        learner_samples: samples the learner has seen after this call's update.
+        plan_t: (N,) times of the current plan's state points (relative to its start).
+        plan_x: (N, n) the current plan's states (the predicted trajectory).
+        action: (m,) the applied action.
+    """
+
+    step: int
+    replanned: bool
+    success: bool
+    status: str
+    iterations: int
+    solve_time: float
+    act_time: float
+    fallback: bool
+    learner_samples: int
+    plan_t: np.ndarray
+    plan_x: np.ndarray
+    action: np.ndarray
+
+
+@dataclass
+class _Plan:
+    solution: OCPSolution
+    step: int  # control period at which the plan starts
+
+
+@dataclass
+class _Buffer:
+    X: list[np.ndarray] = field(default_factory=list)
+    U: list[np.ndarray] = field(default_factory=list)
+    X_next: list[np.ndarray] = field(default_factory=list)
+
+    def clear(self) -> None:
+        self.X.clear()
+        self.U.clear()
+        self.X_next.clear()
+
+
+class PseudospectralMPC:
+    """Gauss pseudospectral MPC on nominal physics plus an optional learned residual.
+
+    Args:
+        model: the model the controller plans with: an env's ``nominal_model``, or (for the
+            upper-bound baseline only) ``gp_envs.oracle_model(env)``.
+        learner: a residual learner (``gp_agents.IncrementalSSGP``, ``SSGP`` or ``ExactGP``), or
+            None for the pure physics model. It must be fitted before the first ``act``
+            (:meth:`pretrain` does it from transitions).
+        mode: ``"receding"`` (Algorithm 1) or ``"episodic"`` (plan once over the task's whole
+            duration at the first ``act``, then execute open loop; no learning).
+        horizon: prediction horizon in seconds (receding mode; default per system in
+            :data:`DEFAULT_SETTINGS`).
+        n_nodes: LG nodes per mesh interval. n_intervals: mesh intervals.
+        replan_every: ``p``, control periods executed from each plan before re-solving.
+        learn_online: feed observed transitions to ``learner.update`` (if the learner has one).
+        uncertain_indices: state components with a learned residual (default: the model's
+            accelerations, ``model.dynamic_indices``).
+        uncertainty_radius: ``kappa`` >= 0; with obstacles and a learner, the obstacle constraint
+            is ``distance >= O_r + B_r + kappa * U_r`` with ``U_r`` the one-step position
+            standard deviation from the learner's predictive variance in the direction of the
+            obstacle (paper, "Obstacle Avoidance using SSGP"); 0 reproduces the paper's run.
+        control_at_t0: how the applied control is obtained (module docstring).
+        solver: CasADi NLP solver plugin (default IPOPT). solver_options: CasADi options merged
+            over quiet defaults.
+        max_solve_time: wall-clock limit of one solve in seconds (IPOPT ``max_wall_time``);
+            a solve that hits it counts as failed and the previous plan is used.
+        state_margin: fraction of each finite state range by which the plan keeps inside the
+            env's state box (the box ends the episode; a plan on its edge crosses it between
+            nodes or under model error). 0.05 shrinks ``[-1, 1]`` to ``[-0.95, 0.95]``.
+        obstacle_margin: metres added to obstacle radius plus body radius in the plan, for the
+            same reason.
+    """
+
+    def __init__(self, model: ControlModel, learner: Any | None = None, *,
+                 mode: Literal["receding", "episodic"] = "receding",
+                 horizon: float | None = None, n_nodes: int | None = None,
+                 n_intervals: int | None = None, replan_every: int = 1,
+                 learn_online: bool = True, uncertain_indices: tuple[int, ...] | None = None,
+                 uncertainty_radius: float = 0.0, control_at_t0: ControlAtT0 = "period_mean",
+                 solver: str = "ipopt", solver_options: Mapping[str, Any] | None = None,
+                 max_solve_time: float | None = None, state_margin: float = 0.05,
+                 obstacle_margin: float = 0.1) -> None:
+        if not isinstance(model, ControlModel):
+            raise TypeError(f"model must be a gp_envs ControlModel, got {type(model).__name__}")
+        if mode not in ("receding", "episodic"):
+            raise ValueError(f"mode must be 'receding' or 'episodic', got {mode!r}")
+        if control_at_t0 not in ("period_mean", "extrapolate", "first_node"):
+            raise ValueError(f"unknown control_at_t0 {control_at_t0!r}")
+        if int(replan_every) < 1:
+            raise ValueError(f"replan_every must be >= 1, got {replan_every}")
+        if not (np.isfinite(uncertainty_radius) and uncertainty_radius >= 0):
+            raise ValueError(f"uncertainty_radius must be >= 0, got {uncertainty_radius}")
+        defaults = (EPISODIC_SETTINGS if mode == "episodic" else DEFAULT_SETTINGS).get(
+            model.name, {})
+        if mode == "episodic":
+            horizon = model.task.duration if horizon is None else horizon
+        horizon = defaults.get("horizon") if horizon is None else horizon
+        if horizon is None or not (np.isfinite(horizon) and horizon > 0):
+            raise ValueError(f"horizon must be a positive number of seconds, got {horizon}")
+        self.model = model
+        self.learner = learner
+        self.mode = mode
+        self.horizon = float(horizon)
+        self.n_nodes = int(n_nodes if n_nodes is not None else defaults.get("n_nodes", 12))
+        self.n_intervals = int(n_intervals if n_intervals is not None
+                               else defaults.get("n_intervals", 1))
+        self.replan_every = int(replan_every)
+        self.learn_online = bool(learn_online)
+        self.uncertainty_radius = float(uncertainty_radius)
+        self.control_at_t0 = control_at_t0
+        self.solver = solver
+        self.solver_options = dict(solver_options or {})
+        self.max_solve_time = max_solve_time
+        if not (0 <= state_margin < 0.5 and obstacle_margin >= 0):
+            raise ValueError("state_margin must be in [0, 0.5) and obstacle_margin >= 0")
+        self.state_margin = float(state_margin)
+        self.obstacle_margin = float(obstacle_margin)
+        self.residual = ResidualModel(model, uncertain_indices)
+
+        self._model_source: Callable[[], ControlModel] | None = None
+        self._ocp: GaussPseudospectralSolver | None = None
+        self._theta_size = 0
+        self._buffer = _Buffer()
+        self.diagnostics: list[StepRecord] = []
+        """One :class:`StepRecord` per ``act`` call since the last :meth:`reset`."""
+        self.n_solves = 0
+        self.n_failures = 0
+        self.n_fallbacks = 0
+        self.n_builds = 0
+        self.reset()
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def from_env(cls, env: gym.Env, learner: Any | None = None, *, oracle: bool = False,
+                 **settings: Any) -> PseudospectralMPC:
+        """An MPC built from ``env``'s nominal model and task (never the truth).
+
+        The agent follows the env's nominal model: when a reset redraws it (e.g. the Dubins
+        scenario), the new nominal parameter values are used from the next ``act`` on, without
+        a rebuild.
+
+        Args:
+            env: a ``gp_envs`` environment.
+            learner: see the class doc.
+            oracle: plan with the *true* model instead (``gp_envs.oracle_model``): the
+                upper-bound baseline, for benchmarks only.
+            **settings: keyword settings of the class.
+        """
+        base = env.unwrapped
+        if not hasattr(base, "nominal_model"):
+            raise TypeError("from_env needs a gp_envs environment (with a nominal_model)")
+        if oracle:
+            import gp_envs
+
+            source: Callable[[], ControlModel] = lambda: gp_envs.oracle_model(env)  # noqa: E731
+        else:
+            source = lambda: base.nominal_model  # noqa: E731
+        agent = cls(source(), learner, **settings)
+        agent._model_source = source
+        return agent
+
+    def pretrain(self, data: Transitions) -> PseudospectralMPC:
+        """Fit the learner on initial transitions (Algorithm 1, line 1).
+
+        Args:
+            data: observed transitions, e.g. from :func:`gp_agents.data.collect_initial_data`.
+        """
+        if self.learner is None:
+            raise ValueError("this agent has no learner to pretrain")
+        Z, Y = self.residual.targets(data.X, data.U, data.X_next)
+        self.learner.fit(Z, Y)
+        self._ocp = None  # the learner's parameter layout may have changed
+        return self
+
+    def reset(self, model: ControlModel | None = None) -> None:
+        """Forget the current plan and diagnostics (call at every env reset).
+
+        Args:
+            model: a new model of the same system (e.g. a redrawn nominal model); only its
+                parameter values are used, the NLP is not rebuilt.
+        """
+        if model is not None:
+            self._set_model(model)
+        self._plan: _Plan | None = None
+        self._step = 0
+        self._buffer.clear()
+        self.diagnostics = []
+
+    def _set_model(self, model: ControlModel) -> None:
+        if model.name != self.model.name or model.param_names != self.model.param_names:
+            raise ValueError(f"cannot swap a {self.model.name} model for a {model.name} model")
+        self.model = model
+
+    # ------------------------------------------------------------------ the OCP
+    def _learner_theta(self) -> np.ndarray:
+        if self.learner is None:
+            return np.zeros(0)
+        try:
+            return np.asarray(self.learner.casadi_param_values(), float).ravel()
+        except (ValueError, RuntimeError) as err:  # not fitted
+            raise RuntimeError(
+                "the learner is not fitted: call agent.pretrain(collect_initial_data(env)) "
+                "or fit the learner before the first act()") from err
+
+    def _build(self, theta_size: int) -> None:
+        model, residual, learner = self.model, self.residual, self.learner
+        k = len(model.param_names)
+        f_param = model.casadi_parametric_function()
+        task = model.task
+        selector = ca.DM(residual.selector)
+
+        def split(p: Any) -> tuple[Any, Any]:
+            return p[:k], p[k:k + theta_size]
+
+        def dynamics(x: Any, u: Any, p: Any) -> Any:
+            params, theta = split(p)
+            xdot = f_param(x, u, params)
+            if learner is not None:
+                xdot = xdot + ca.mtimes(selector, learner.casadi_mean(residual.features(x, u),
+                                                                      theta))
+            return xdot
+
+        def running_cost(x: Any, u: Any, p: Any) -> Any:
+            return task.stage_cost(x, u)
+
+        def terminal_cost(x0: Any, xf: Any, tf: Any, p: Any) -> Any:
+            return task.terminal_cost(xf)
+
+        path = None
+        if task.obstacles:
+            def path(x: Any, u: Any, p: Any) -> Any:
+                out = []
+                for ob in task.obstacles:
+                    d = x[:2] - ca.DM(ob.center)
+                    radius = ob.radius + task.body_radius + self.obstacle_margin
+                    if learner is not None and self.uncertainty_radius > 0:
+                        radius = radius + self.uncertainty_radius * self._sym_uncertainty(
+                            x, u, split(p)[1], d)
+                    out.append(radius**2 - ca.sumsqr(d))  # <= 0 keeps clear
+                return ca.vertcat(*out)
+
+        half = 0.5 * (model.x_ub - model.x_lb)
+        shrink = np.where(np.isfinite(half), self.state_margin * half, 0.0)
+        x_lb, x_ub = model.x_lb + shrink, model.x_ub - shrink
+        problem = OptimalControlProblem(
+            n_states=model.n_states, n_controls=model.n_controls, dynamics=dynamics,
+            n_params=k + theta_size, running_cost=running_cost, terminal_cost=terminal_cost,
+            t0=0.0, tf=self.horizon, x_lb=x_lb, x_ub=x_ub, u_lb=model.u_lb,
+            u_ub=model.u_ub, x0=np.zeros(model.n_states), path_constraints=path,
+        )
+        options = dict(self.solver_options)
+        if self.max_solve_time is not None and self.solver == "ipopt":
+            ipopt = dict(options.get("ipopt", {}))
+            ipopt.setdefault("max_wall_time", float(self.max_solve_time))
+            options["ipopt"] = ipopt
+        self._ocp = GaussPseudospectralSolver(
+            problem, n_nodes=self.n_nodes, n_intervals=self.n_intervals, solver=self.solver,
+            solver_options=options)
+        self._theta_size = theta_size
+        self.n_builds += 1
+
+    def _sym_uncertainty(self, x: Any, u: Any, theta: Any, d: Any) -> Any:
+        """One-step position std in the direction ``d`` (paper: Sigma_x1 = Sigma_xdot dt^2)."""
+        unc = self.residual.uncertain_indices
+        if 0 not in unc or 1 not in unc:
+            return ca.DM(0.0)
+        var = self.learner.casadi_variance(self.residual.features(x, u), theta)
+        vx, vy = var[unc.index(0)], var[unc.index(1)]
+        dist2 = ca.sumsqr(d) + 1e-12
+        # radius of the 1-sigma ellipse (axes sqrt(vx) dt, sqrt(vy) dt) along the unit vector d
+        return self.model.dt / ca.sqrt((d[0] ** 2 / vx + d[1] ** 2 / vy) / dist2)
+
+    # ------------------------------------------------------------------ acting
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        """The action for the current observation.
+
+        Args:
+            obs: (n,) observed state.
+
+        Returns:
+            (m,) float32 action within the model's control bounds.
+
+        Raises:
+            ValueError: wrong shape or non-finite observation.
+            RuntimeError: a learner that was never fitted.
+        """
+        start = time.perf_counter()
+        x = np.asarray(obs, dtype=float)
+        if x.shape != (self.model.n_states,):
+            raise ValueError(f"obs must have shape ({self.model.n_states},), got {x.shape}")
+        if not np.all(np.isfinite(x)):
+            raise ValueError(f"obs must be finite, got {x}")
+        if self._model_source is not None:
+            current = self._model_source()
+            if current is not self.model:
+                self._set_model(current)
+
+        replan = self._plan is None or (
+            self.mode == "receding" and self._step - self._plan.step >= self.replan_every)
+        record = dict(replanned=False, success=True, status="reuse", iterations=0,
+                      solve_time=0.0, fallback=False)
+        if replan:
+            self._flush_learning()
+            record.update(self._replan(x))
+        plan = self._plan
+        assert plan is not None
+        offset = (self._step - plan.step) * self.model.dt
+        u = self._applied_control(plan.solution, offset)
+        u32 = np.clip(u.astype(np.float32), self.model.u_lb.astype(np.float32),
+                      self.model.u_ub.astype(np.float32))
+        self.diagnostics.append(StepRecord(
+            step=self._step, learner_samples=self._learner_samples(),
+            act_time=time.perf_counter() - start, plan_t=plan.solution.t - offset,
+            plan_x=plan.solution.x, action=u32.copy(), **record))
+        self._step += 1
+        return u32
+
+    def _replan(self, x: np.ndarray) -> dict[str, Any]:
+        theta = self._learner_theta()
+        if self._ocp is None or theta.size != self._theta_size:
+            self._build(theta.size)
+        assert self._ocp is not None
+        p = np.concatenate([self.model.param_vector, theta])
+        if self._plan is not None:
+            elapsed = (self._step - self._plan.step) * self.model.dt
+            guess = self._aligned_guess(self._plan.solution.shift(elapsed), x)
+        else:
+            guess = self._goal_guess(x)
+        sol = self._ocp.solve(p=p, x0=x, initial_guess=guess)
+        self.n_solves += 1
+        usable = sol.success and np.all(np.isfinite(sol.u))
+        fallback = False
+        if usable:
+            self._plan = _Plan(sol, self._step)
+        else:
+            self.n_failures += 1
+            previous_valid = (self._plan is not None and
+                              (self._step - self._plan.step) * self.model.dt < self.horizon)
+            if previous_valid:
+                fallback = True
+                self.n_fallbacks += 1
+            elif np.all(np.isfinite(sol.u)) and np.all(np.isfinite(sol.x)):
+                self._plan = _Plan(sol, self._step)  # best effort: the solver's last iterate
+            else:
+                self._plan = _Plan(self._hold_plan(x), self._step)
+                fallback = True
+                self.n_fallbacks += 1
+        return dict(replanned=True, success=bool(sol.success), status=sol.status,
+                    iterations=int(sol.iterations), solve_time=float(sol.solve_time),
+                    fallback=fallback)
+
+    def _goal_guess(self, x: np.ndarray) -> InitialGuess:
+        """Cold-start guess: a straight line in state space from ``x`` to the task's goal.
+
+        Reaching the goal within the horizon is what the cost asks for; starting the NLP from
+        "stay where you are" lands the swing-up in a poor local minimum.
+        """
+        goal = self.model.task.goal.copy()
+        for i in self.model.task.periodic_indices:  # head for the nearest copy of the goal
+            goal[i] = x[i] - self.model.task.error(x)[i]
+        t = np.linspace(0.0, self.horizon, 2 * self.n_nodes * self.n_intervals + 1)
+        s = (t / self.horizon)[:, None]
+        states = np.clip((1 - s) * x + s * goal, self.model.x_lb, self.model.x_ub)
+        u = np.clip(self.model.task.u_ref, self.model.u_lb, self.model.u_ub)
+        return InitialGuess(t=t, x=states, t_u=t, u=np.tile(u, (t.size, 1)))
+
+    def _aligned_guess(self, guess: InitialGuess, x: np.ndarray) -> InitialGuess:
+        """Shift angle trajectories of a warm start by 2 pi k to start at the measured angle."""
+        if not self.model.angle_indices:
+            return guess
+        gx = guess.x.copy()
+        for i in self.model.angle_indices:
+            gx[:, i] += 2 * np.pi * np.round((x[i] - gx[0, i]) / (2 * np.pi))
+        return InitialGuess(t=guess.t, x=gx, t_u=guess.t_u, u=guess.u, tf=guess.tf)
+
+    def _hold_plan(self, x: np.ndarray) -> OCPSolution:
+        """A constant plan at ``u_ref`` (used only when no solution exists at all)."""
+        assert self._ocp is not None
+        u = np.clip(self.model.task.u_ref, self.model.u_lb, self.model.u_ub)
+        t = np.array([0.0, self.horizon])
+        guess = InitialGuess(t=t, x=np.vstack([x, x]), t_u=t, u=np.vstack([u, u]))
+        return _ConstantPlan(guess, self.model)  # type: ignore[return-value]
+
+    def _applied_control(self, sol: OCPSolution, offset: float) -> np.ndarray:
+        if isinstance(sol, _ConstantPlan):
+            return sol.control(offset)
+        if self.control_at_t0 == "period_mean":
+            nodes, weights = _PERIOD_QUADRATURE
+            t = offset + 0.5 * self.model.dt * (nodes + 1.0)
+            u = 0.5 * weights @ np.atleast_2d(sol.control(t))
+        elif self.control_at_t0 == "extrapolate":
+            u = sol.control(offset)
+        else:  # first_node: hold each node's value from the node before it
+            idx = min(int(np.searchsorted(sol.t_nodes, offset)), len(sol.t_nodes) - 1)
+            u = sol.u[idx]
+        return np.clip(np.asarray(u, float).ravel(), self.model.u_lb, self.model.u_ub)
+
+    # ------------------------------------------------------------------ learning
+    def observe(self, obs: np.ndarray, action: np.ndarray, next_obs: np.ndarray) -> None:
+        """Record a transition; the learner is updated before the next solve (Algorithm 1).
+
+        Args:
+            obs: (n,) state at the start of the period. action: (m,) applied action.
+            next_obs: (n,) state one control period later.
+        """
+        x = np.asarray(obs, float)
+        u = np.asarray(action, float).ravel()
+        xn = np.asarray(next_obs, float)
+        n, m = self.model.n_states, self.model.n_controls
+        if x.shape != (n,) or xn.shape != (n,) or u.shape != (m,):
+            raise ValueError(f"observe expects obs/next_obs ({n},) and action ({m},), got "
+                             f"{x.shape}, {xn.shape}, {u.shape}")
+        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(xn)) and np.all(np.isfinite(u))):
+            raise ValueError("observe got a non-finite value")
+        if self.mode == "episodic" or not self.learn_online or self.learner is None:
+            return
+        if not hasattr(self.learner, "update"):
+            return
+        self._buffer.X.append(x)
+        self._buffer.U.append(np.clip(u, self.model.u_lb, self.model.u_ub))
+        self._buffer.X_next.append(xn)
+
+    def _flush_learning(self) -> None:
+        if not self._buffer.X:
+            return
+        Z, Y = self.residual.targets(np.array(self._buffer.X), np.array(self._buffer.U),
+                                     np.array(self._buffer.X_next))
+        self._buffer.clear()
+        self.learner.update(Z, Y)
+
+    def _learner_samples(self) -> int:
+        return int(getattr(self.learner, "n_samples_seen_", 0)) if self.learner is not None else 0
+
+    # ------------------------------------------------------------------ diagnostics
+    def diagnostics_arrays(self) -> dict[str, np.ndarray]:
+        """Per-step diagnostics as arrays (for ``np.savez_compressed`` and plots).
+
+        Returns:
+            dict of arrays of length T (steps): ``replanned, success, iterations, solve_time,
+            act_time, fallback, learner_samples, action (T, m)`` and ``status`` (strings), and
+            the predicted trajectories ``plan_t (T, N)``, ``plan_x (T, N, n)``.
+        """
+        d = self.diagnostics
+        if not d:
+            return {}
+        return {
+            "step": np.array([r.step for r in d]),
+            "replanned": np.array([r.replanned for r in d]),
+            "success": np.array([r.success for r in d]),
+            "status": np.array([r.status for r in d]),
+            "iterations": np.array([r.iterations for r in d]),
+            "solve_time": np.array([r.solve_time for r in d]),
+            "act_time": np.array([r.act_time for r in d]),
+            "fallback": np.array([r.fallback for r in d]),
+            "learner_samples": np.array([r.learner_samples for r in d]),
+            "action": np.array([r.action for r in d]),
+            "plan_t": _stack_ragged([r.plan_t for r in d]),
+            "plan_x": _stack_ragged([r.plan_x for r in d]),
+        }
+
+
+class _ConstantPlan:
+    """Stand-in for a solution when the very first solve fails with nothing usable."""
+
+    def __init__(self, guess: InitialGuess, model: ControlModel) -> None:
+        self._guess = guess
+        self.t = guess.t
+        self.x = guess.x
+        self.u = guess.u
+        self.t_nodes = guess.t_u
+        self.success = False
+
+    def control(self, t: Any) -> np.ndarray:
+        return self._guess.control(t)[0]
+
+    def shift(self, dt: float) -> InitialGuess:
+        return self._guess
+
+
+def _stack_ragged(arrays: list[np.ndarray]) -> np.ndarray:
+    shapes = {a.shape for a in arrays}
+    if len(shapes) == 1:
+        return np.stack(arrays)
+    longest = max(a.shape[0] for a in arrays)
+    out = np.full((len(arrays), longest, *arrays[0].shape[1:]), np.nan)
+    for i, a in enumerate(arrays):
+        out[i, : a.shape[0]] = a
+    return out

@@ -1,0 +1,499 @@
+"""Tests of the GP residual learners (gp_agents.learners).
+
+Independent checks: dense textbook formulas (np.linalg.solve / inv, no Cholesky), finite
+differences, a known 1-D function, a step-by-step simulation of the forgetting schedule.
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+import pytest
+from scipy.linalg import cholesky
+
+from gp_agents.learners import (
+    SSGP,
+    ExactGP,
+    GPHyperparameters,
+    IncrementalSSGP,
+    NotFittedError,
+)
+from gp_agents.learners.cholesky_update import cholesky_add_rows, positive_diagonal
+from gp_agents.learners.exact_gp import exact_gp_nlml
+from gp_agents.learners.ssgp import ssgp_nlml
+
+
+def _target(Z: np.ndarray) -> np.ndarray:
+    """A smooth 2-output test function of 3 inputs."""
+    return np.c_[np.sin(1.5 * Z[:, 0]) * Z[:, 1], np.cos(Z[:, 2]) + 0.3 * Z[:, 0] ** 2]
+
+
+@pytest.fixture(scope="module")
+def data() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(42)
+    Z = rng.uniform(-2.0, 2.0, (120, 3)) * [1.0, 3.0, 0.5] + [0.0, 1.0, -2.0]
+    Y = _target(Z) * [1.0, 10.0] + 0.02 * rng.standard_normal((120, 2))
+    Zt = rng.uniform(-1.5, 1.5, (40, 3)) * [1.0, 3.0, 0.5] + [0.0, 1.0, -2.0]
+    return Z, Y, Zt, _target(Zt) * [1.0, 10.0]
+
+
+@pytest.fixture(scope="module")
+def exact_gp(data) -> ExactGP:
+    Z, Y, _, _ = data
+    return ExactGP(n_restarts=1, random_state=0).fit(Z, Y)
+
+
+def _central_diff(f, x: np.ndarray, h: float = 1e-5) -> np.ndarray:
+    """Central finite-difference gradient of a scalar function."""
+    return np.array([(f(x + h * e) - f(x - h * e)) / (2 * h) for e in np.eye(len(x))])
+
+
+def _hyp(d_in: int, d_out: int, ell: float = 1.0, sf: float = 1.0, sn: float = 0.1):
+    return GPHyperparameters(
+        np.full((d_out, d_in), ell) * (1.0 + 0.2 * np.arange(d_in)),
+        np.full(d_out, sf),
+        np.full(d_out, sn),
+    )
+
+
+# ---------------------------------------------------------------------------- exact GP
+def test_exact_gp_matches_dense_formula(data):
+    Z, Y, Zt, _ = data
+    hyp = _hyp(3, 2, ell=1.3, sf=0.9, sn=0.2)
+    gp = ExactGP(optimize=False, hyperparameters=hyp, normalize=False).fit(Z, Y)
+    mean, std = gp.predict(Zt, return_std=True)
+    for j in range(2):
+        ell, sf, sn = hyp.length_scales[j], hyp.signal_std[j], hyp.noise_std[j]
+
+        def k(A, B, ell=ell, sf=sf):
+            diff = (A[:, None, :] - B[None, :, :]) / ell
+            return sf**2 * np.exp(-0.5 * np.sum(diff**2, axis=2))
+
+        Ky = k(Z, Z) + sn**2 * np.eye(len(Z))
+        Ks = k(Zt, Z)
+        m = Ks @ np.linalg.solve(Ky, Y[:, j])
+        v = sf**2 + sn**2 - np.einsum("ij,ji->i", Ks, np.linalg.solve(Ky, Ks.T))
+        np.testing.assert_allclose(mean[:, j], m, rtol=1e-8, atol=1e-8)
+        np.testing.assert_allclose(std[:, j] ** 2, v, rtol=1e-7, atol=1e-10)
+        lml = -0.5 * Y[:, j] @ np.linalg.solve(Ky, Y[:, j]) - 0.5 * np.linalg.slogdet(Ky)[1]
+        lml -= 0.5 * len(Z) * np.log(2 * np.pi)
+        assert gp.log_marginal_likelihood_[j] == pytest.approx(lml, rel=1e-9)
+
+
+def test_exact_gp_learns_known_1d_function():
+    rng = np.random.default_rng(0)
+    Z = rng.uniform(-3.0, 3.0, (80, 1))
+    noise = 0.05
+    Y = np.sin(2.0 * Z) + noise * rng.standard_normal(Z.shape)
+    gp = ExactGP(n_restarts=2, random_state=1).fit(Z, Y)
+    Zt = np.linspace(-2.8, 2.8, 200)[:, None]
+    mean, std = gp.predict(Zt, return_std=True)
+    rmse = np.sqrt(np.mean((mean - np.sin(2.0 * Zt)) ** 2))
+    assert rmse < 0.03
+    # learned noise (original units) close to the truth; std includes the noise
+    sn = gp.hyperparameters_.noise_std[0] * gp.standardizer_.y_std[0]
+    assert 0.5 * noise < sn < 2.0 * noise
+    assert np.all(std >= sn * (1 - 1e-9))
+    # far from the data the predictive std returns to the prior
+    far = gp.predict(np.array([[50.0]]), return_std=True)[1][0, 0]
+    sf = gp.hyperparameters_.signal_std[0] * gp.standardizer_.y_std[0]
+    assert far == pytest.approx(np.hypot(sf, sn), rel=1e-6)
+    assert gp.n_samples_seen_ == 80
+
+
+@pytest.mark.parametrize("which", ["exact", "ssgp"])
+def test_nlml_gradients_match_finite_differences(which, data):
+    Z, Y, _, _ = data
+    Zs = (Z - Z.mean(0)) / Z.std(0)
+    y = (Y[:, 1] - Y[:, 1].mean()) / Y[:, 1].std()
+    theta = np.r_[np.log([0.7, 1.3, 2.0]), np.log(0.8), np.log(0.2)]
+    base = np.random.default_rng(3).standard_normal((3, 40))
+    if which == "exact":
+        fun = lambda t: exact_gp_nlml(t, Zs, y)  # noqa: E731
+    else:
+        fun = lambda t: ssgp_nlml(t, Zs, y, base)  # noqa: E731
+    _, grad = fun(theta)
+    fd = _central_diff(lambda t: fun(t)[0], theta)
+    np.testing.assert_allclose(grad, fd, rtol=1e-5, atol=1e-5)
+
+
+def test_exact_gp_optimization_improves_likelihood(data, exact_gp):
+    Z, Y, _, _ = data
+    default = ExactGP(optimize=False, hyperparameters=_hyp(3, 2)).fit(Z, Y)
+    assert np.all(exact_gp.log_marginal_likelihood_ > default.log_marginal_likelihood_)
+
+
+@pytest.mark.parametrize("kind", ["exact", "ssgp", "incremental"])
+def test_predict_gradient_matches_finite_differences(kind, data, exact_gp):
+    Z, Y, Zt, _ = data
+    if kind == "exact":
+        model = exact_gp
+    elif kind == "ssgp":
+        model = SSGP(50, hyperparameters=exact_gp).fit(Z, Y)
+    else:
+        model = IncrementalSSGP(50, forgetting_factor=0.95, hyperparameters=exact_gp).fit(Z, Y)
+    G = model.predict_gradient(Zt[:5])
+    assert G.shape == (5, 2, 3)
+    for n in range(5):
+        for i in range(2):
+            fd = _central_diff(lambda z, i=i: model.predict(z[None, :])[0, i], Zt[n], 1e-4)
+            np.testing.assert_allclose(G[n, i], fd, rtol=1e-5, atol=1e-5 * np.abs(G).max())
+
+
+# ---------------------------------------------------------------------------- SSGP
+def test_ssgp_matches_dense_weight_space_formula(data):
+    Z, Y, Zt, _ = data
+    hyp = _hyp(3, 2, ell=1.1, sf=1.2, sn=0.15)
+    model = SSGP(30, hyperparameters=hyp, normalize=False, random_state=7).fit(Z, Y)
+    mean, std = model.predict(Zt, return_std=True)
+    for j in range(2):
+        omega = model.base_frequencies_[j] / hyp.length_scales[j][:, None]
+
+        def phi(A, omega=omega, sf=hyp.signal_std[j]):
+            U = omega.T @ A.T  # (r, N)
+            return sf / np.sqrt(omega.shape[1]) * np.vstack([np.cos(U), np.sin(U)])
+
+        Phi = phi(Z)
+        A = Phi @ Phi.T + hyp.noise_std[j] ** 2 * np.eye(60)
+        w = np.linalg.solve(A, Phi @ Y[:, j])
+        Ps = phi(Zt)
+        np.testing.assert_allclose(model.weights_[j], w, rtol=1e-8, atol=1e-9)
+        np.testing.assert_allclose(mean[:, j], w @ Ps, rtol=1e-8, atol=1e-9)
+        var = hyp.noise_std[j] ** 2 * (1 + np.einsum("in,ij,jn->n", Ps, np.linalg.inv(A), Ps))
+        np.testing.assert_allclose(std[:, j] ** 2, var, rtol=1e-7)
+
+
+def test_ssgp_converges_to_exact_gp(data, exact_gp):
+    Z, Y, Zt, _ = data
+    m_ex, s_ex = exact_gp.predict(Zt, return_std=True)
+    scale = Y.std(0)
+    errs, std_errs = [], []
+    for r in (10, 100, 1500):
+        m, s = (
+            SSGP(r, hyperparameters=exact_gp, random_state=1).fit(Z, Y).predict(Zt, return_std=True)
+        )
+        errs.append(np.sqrt(np.mean(((m - m_ex) / scale) ** 2)))
+        std_errs.append(np.max(np.abs(s - s_ex) / scale))
+    assert errs[0] > errs[1] > errs[2]
+    assert errs[2] < 0.03
+    assert std_errs[2] < std_errs[0]
+
+
+def test_ssgp_own_marginal_likelihood(data):
+    Z, Y, Zt, Yt = data
+    model = SSGP(40, hyperparameters="ssgp", n_restarts=1, random_state=0).fit(Z, Y)
+    nmse = np.mean((model.predict(Zt) - Yt) ** 2, axis=0) / np.var(Yt, axis=0)
+    assert np.all(nmse < 0.05)
+    # optimum is at least as good as the default start
+    Zs = model.standardizer_.transform_inputs(Z)
+    Ys = model.standardizer_.transform_outputs(Y)
+    for j in range(2):
+        opt = ssgp_nlml(
+            model.hyperparameters_.log_params(j), Zs, Ys[:, j], model.base_frequencies_[j]
+        )
+        start = ssgp_nlml(np.r_[0, 0, 0, 0, np.log(0.1)], Zs, Ys[:, j], model.base_frequencies_[j])
+        assert opt[0] <= start[0]
+
+
+def test_ssgp_hyperparameters_exact_string(data, exact_gp):
+    Z, Y, Zt, _ = data
+    a = SSGP(20, hyperparameters="exact", n_restarts=1, random_state=0).fit(Z, Y)
+    b = SSGP(20, hyperparameters=exact_gp, random_state=0).fit(Z, Y)
+    np.testing.assert_allclose(a.predict(Zt), b.predict(Zt), rtol=1e-6, atol=1e-8)
+
+
+# ---------------------------------------------------------------------------- incremental
+def test_cholesky_add_rows():
+    rng = np.random.default_rng(0)
+    X = rng.standard_normal((40, 12))
+    A = X.T @ X + np.eye(12)
+    B = rng.standard_normal((3, 12))
+    R = cholesky_add_rows(cholesky(A), B, scale=np.sqrt(0.9))
+    assert np.all(np.tril(R, -1) == 0)
+    R = positive_diagonal(R)
+    np.testing.assert_allclose(R, cholesky(0.9 * A + B.T @ B), rtol=1e-12, atol=1e-12)
+
+
+def _simulated_prior_ages(n: int, D: int, m: int) -> np.ndarray:
+    """Step-by-step simulation of the refresh schedule (independent of prior_ages)."""
+    ages = np.zeros(D, dtype=int)
+    pos = 0
+    for _ in range(n):
+        ages += 1
+        for _ in range(m):
+            ages[pos % D] = 0
+            pos += 1
+    return ages
+
+
+def _batch_reference(model: IncrementalSSGP, Z, Y, lam: float, m: int):
+    """Dense batch formula: A = sn^2 diag(lam^ages) + sum_i lam^(n-i) phi_i phi_i^T."""
+    std, hyp = model.standardizer_, model.hyperparameters_
+    Zs, Ys = std.transform_inputs(Z), std.transform_outputs(Y)
+    n = len(Z)
+    wts = lam ** np.arange(n - 1, -1, -1, dtype=float)
+    W = []
+    for j in range(model.n_outputs_):
+        omega = model.base_frequencies_[j] / hyp.length_scales[j][:, None]
+        U = Zs @ omega
+        F = hyp.signal_std[j] / np.sqrt(omega.shape[1]) * np.hstack([np.cos(U), np.sin(U)])
+        D = F.shape[1]
+        ages = _simulated_prior_ages(n, D, m)
+        A = F.T @ (wts[:, None] * F) + np.diag(hyp.noise_std[j] ** 2 * lam**ages)
+        W.append(np.linalg.solve(A, F.T @ (wts * Ys[:, j])))
+    return np.array(W)
+
+
+@pytest.mark.parametrize(("lam", "m"), [(1.0, 1), (0.97, 1), (0.9, 3), (0.95, 100)], ids=str)
+def test_incremental_equals_batch(lam, m, data, exact_gp):
+    Z, Y, Zt, _ = data
+    n0 = 30
+    model = IncrementalSSGP(
+        15, forgetting_factor=lam, prior_refresh=m, hyperparameters=exact_gp, random_state=3
+    ).fit(Z[:n0], Y[:n0])
+    # mixed single-sample and batch updates
+    i = n0
+    for p in (1, 1, 7, 1, 25, 1, 2):
+        model.update(Z[i : i + p], Y[i : i + p])
+        i += p
+    model.update(Z[i:], Y[i:])
+    assert model.n_samples_seen_ == len(Z)
+    W_ref = _batch_reference(model, Z, Y, lam, m)
+    np.testing.assert_allclose(model.weights_, W_ref, rtol=1e-8, atol=1e-8 * np.abs(W_ref).max())
+    # the same learner fitted on everything at once (batch path) agrees too
+    batch = IncrementalSSGP(
+        15, forgetting_factor=lam, prior_refresh=m, hyperparameters=exact_gp, random_state=3
+    ).fit(Z, Y)
+    np.testing.assert_allclose(model.predict(Zt), batch.predict(Zt), rtol=1e-8, atol=1e-10)
+    np.testing.assert_allclose(
+        model.predict(Zt, return_std=True)[1], batch.predict(Zt, return_std=True)[1], rtol=1e-8
+    )
+    if lam == 1.0:  # no forgetting: the ordinary batch SSGP
+        ssgp = SSGP(15, hyperparameters=exact_gp, random_state=3).fit(Z, Y)
+        np.testing.assert_allclose(model.predict(Zt), ssgp.predict(Zt), rtol=1e-8, atol=1e-10)
+
+
+def test_prior_stays_bounded_over_1e5_updates():
+    """1e5 single-sample updates with lambda < 1, the last 6e4 on one repeated input (the data
+    part of A has rank 1 there): the factor tracks the dense recursion and A stays
+    well conditioned."""
+    rng = np.random.default_rng(0)
+    lam, r, sn = 0.99, 5, 0.1
+    hyp = GPHyperparameters(np.array([[0.8, 1.5]]), np.array([1.0]), np.array([sn]))
+    model = IncrementalSSGP(r, forgetting_factor=lam, hyperparameters=hyp, normalize=False)
+    model.fit(rng.uniform(-1, 1, (10, 2)), rng.standard_normal((10, 1)))
+    D = 2 * r
+    omega = model.omega_[0]
+    A = model.cholesky_factor_[0].T @ model.cholesky_factor_[0]
+    n_upd = 100_000
+    Zn = rng.uniform(-1, 1, (n_upd, 2))
+    Zn[40_000:] = [0.3, -0.2]
+    Yn = np.sin(Zn[:, :1]) + 0.01 * rng.standard_normal((n_upd, 1))
+    F = np.hstack([np.cos(Zn @ omega), np.sin(Zn @ omega)]) / np.sqrt(r)
+    pos = 10  # refresh position after the 10 fitted samples (m = 1)
+    ages = _simulated_prior_ages(10, D, 1)
+    worst_cond = 0.0
+    for i in range(n_upd):
+        model.update(Zn[i : i + 1], Yn[i : i + 1])
+        # dense recursion of the stated formula, in the test
+        A = lam * A + np.outer(F[i], F[i])
+        ages += 1
+        k = pos % D
+        A[k, k] += sn**2 * (1.0 - lam ** ages[k])
+        ages[k] = 0
+        pos += 1
+        if i % 10_000 == 9_999:
+            R = model.cholesky_factor_[0]
+            np.testing.assert_allclose(R.T @ R, A, rtol=0, atol=1e-10 * np.abs(A).max())
+            ev = np.linalg.eigvalsh(A)
+            assert ev[0] >= sn**2 * lam ** (D - 1) * (1 - 1e-9)
+            worst_cond = max(worst_cond, ev[-1] / ev[0])
+    assert model.n_samples_seen_ == 10 + n_upd
+    np.testing.assert_allclose(model.prior_diagonal()[0], sn**2 * lam**ages, rtol=1e-12)
+    # bound: lambda_max <= sum_i lam^i |phi|^2 + sn^2 = 1 / (1 - lam) + sn^2
+    assert worst_cond <= (1.0 / (1.0 - lam) + sn**2) / (sn**2 * lam ** (D - 1))
+    assert np.all(np.isfinite(model.weights_))
+    z0 = np.array([[0.3, -0.2]])
+    assert model.predict(z0)[0, 0] == pytest.approx(np.sin(0.3), abs=0.01)
+
+
+def test_save_load_roundtrip(tmp_path, data, exact_gp):
+    Z, Y, Zt, _ = data
+    model = IncrementalSSGP(
+        12, forgetting_factor=0.98, prior_refresh=2, hyperparameters=exact_gp, random_state=5
+    ).fit(Z[:50], Y[:50])
+    model.update(Z[50:80], Y[50:80])
+    path = tmp_path / "ssgp.npz"
+    model.save(path)
+    loaded = IncrementalSSGP.load(path)
+    assert loaded.n_samples_seen_ == model.n_samples_seen_ == 80
+    assert loaded.forgetting_factor == 0.98 and loaded.prior_refresh == 2
+    np.testing.assert_array_equal(loaded.casadi_param_values(), model.casadi_param_values())
+    m1, s1 = model.predict(Zt, return_std=True)
+    m2, s2 = loaded.predict(Zt, return_std=True)
+    np.testing.assert_array_equal(m1, m2)
+    np.testing.assert_array_equal(s1, s2)
+    model.update(Z[80:], Y[80:])
+    loaded.update(Z[80:], Y[80:])
+    np.testing.assert_array_equal(model.predict(Zt), loaded.predict(Zt))
+
+
+# ---------------------------------------------------------------------------- CasADi export
+@pytest.mark.parametrize("sym", [ca.SX, ca.MX], ids=["SX", "MX"])
+@pytest.mark.parametrize("kind", ["exact", "ssgp", "incremental"])
+def test_casadi_export_matches_predict(kind, sym, data, exact_gp):
+    Z, Y, Zt, _ = data
+    if kind == "exact":
+        model = ExactGP(optimize=False, hyperparameters=exact_gp.hyperparameters_).fit(
+            Z[:40], Y[:40]
+        )
+    elif kind == "ssgp":
+        model = SSGP(20, hyperparameters=exact_gp).fit(Z, Y)
+    else:
+        model = IncrementalSSGP(20, forgetting_factor=0.97, hyperparameters=exact_gp).fit(
+            Z[:60], Y[:60]
+        )
+    P = model.casadi_param_size()
+    z = sym.sym("z", 3)
+    theta = sym.sym("theta", P)
+    mean = model.casadi_mean(z, theta)
+    var = model.casadi_variance(z, theta)
+    assert mean.shape == (2, 1) and var.shape == (2, 1)
+    fn = ca.Function("gp", [z, theta], [mean, var, ca.jacobian(mean, z)])
+
+    def check() -> None:
+        tv = model.casadi_param_values()
+        assert tv.shape == (P,)
+        m, s = model.predict(Zt[:6], return_std=True)
+        G = model.predict_gradient(Zt[:6])
+        for n in range(6):
+            cm, cv, cj = (np.asarray(a) for a in fn(Zt[n], tv))
+            np.testing.assert_allclose(cm.ravel(), m[n], rtol=1e-10, atol=1e-10)
+            np.testing.assert_allclose(cv.ravel(), s[n] ** 2, rtol=1e-8, atol=1e-12)
+            np.testing.assert_allclose(cj, G[n], rtol=1e-8, atol=1e-9)
+
+    check()
+    if kind == "incremental":  # the same Function keeps working after updates
+        model.update(Z[60:61], Y[60:61])
+        model.update(Z[61:], Y[61:])
+        assert model.casadi_param_size() == P
+        check()
+
+
+# ---------------------------------------------------------------------------- bad inputs
+def _learners(exact_gp):
+    return [
+        ExactGP(n_restarts=0),
+        SSGP(10, hyperparameters=exact_gp),
+        IncrementalSSGP(10, hyperparameters=exact_gp),
+    ]
+
+
+def test_bad_training_data(data, exact_gp):
+    Z, Y, _, _ = data
+    Zn = Z.copy()
+    Zn[3, 1] = np.nan
+    Yi = Y.copy()
+    Yi[5, 0] = np.inf
+    for model in _learners(exact_gp):
+        for bad_Z, bad_Y, msg in [
+            (Zn, Y, "NaN or infinite"),
+            (Z, Yi, "NaN or infinite"),
+            (Z[:, 0], Y, "2-D"),
+            (Z, Y[:-1], "rows"),
+            (Z[:0], Y[:0], "zero rows"),
+            ([["a", "b", "c"]], [[1.0, 2.0]], "numeric"),
+        ]:
+            with pytest.raises(ValueError, match=msg):
+                model.fit(bad_Z, bad_Y)
+
+
+def test_predict_and_update_before_fit(exact_gp):
+    for model in _learners(exact_gp):
+        with pytest.raises(NotFittedError, match="not fitted"):
+            model.predict(np.zeros((1, 3)))
+        with pytest.raises(NotFittedError):
+            model.casadi_param_values()
+        with pytest.raises(NotFittedError):
+            model.casadi_mean(ca.SX.sym("z", 3), ca.SX.sym("t", 5))
+    with pytest.raises(NotFittedError):
+        IncrementalSSGP(5).update(np.zeros((1, 3)), np.zeros((1, 2)))
+    assert issubclass(NotFittedError, ValueError)
+
+
+def test_bad_settings(data, exact_gp):
+    Z, Y, _, _ = data
+    with pytest.raises(ValueError, match="forgetting_factor"):
+        IncrementalSSGP(5, forgetting_factor=0.0, hyperparameters=exact_gp).fit(Z, Y)
+    with pytest.raises(ValueError, match="forgetting_factor"):
+        IncrementalSSGP(5, forgetting_factor=1.5, hyperparameters=exact_gp).fit(Z, Y)
+    with pytest.raises(ValueError, match="hyperparameters must be"):
+        SSGP(5, hyperparameters="bogus").fit(Z, Y)
+    with pytest.raises(NotFittedError):
+        SSGP(5, hyperparameters=ExactGP()).fit(Z, Y)
+    with pytest.raises(ValueError, match="dimensions"):
+        SSGP(5, hyperparameters=exact_gp).fit(Z[:, :2], Y)
+    with pytest.raises(ValueError, match="requires hyperparameters"):
+        ExactGP(optimize=False).fit(Z, Y)
+    with pytest.raises(ValueError, match="positive"):
+        GPHyperparameters(np.ones((1, 2)), np.ones(1), np.zeros(1))
+
+
+def test_wrong_shapes_at_prediction(data, exact_gp):
+    _, _, Zt, _ = data
+    with pytest.raises(ValueError, match="columns"):
+        exact_gp.predict(Zt[:, :2])
+    with pytest.raises(ValueError, match="2-D"):
+        exact_gp.predict(Zt[0])
+    with pytest.raises(ValueError, match="NaN"):
+        exact_gp.predict_gradient(np.full((1, 3), np.nan))
+    P = exact_gp.casadi_param_size()
+    with pytest.raises(ValueError, match="z must have shape"):
+        exact_gp.casadi_mean(ca.SX.sym("z", 2), ca.SX.sym("t", P))
+    with pytest.raises(ValueError, match="theta must have shape"):
+        exact_gp.casadi_mean(ca.SX.sym("z", 3), ca.SX.sym("t", P + 1))
+
+
+def test_failed_update_leaves_state_intact(data, exact_gp):
+    Z, Y, Zt, _ = data
+    model = IncrementalSSGP(10, forgetting_factor=0.95, hyperparameters=exact_gp).fit(
+        Z[:50], Y[:50]
+    )
+    model.update(Z[50:60], Y[50:60])
+    before = (
+        model.cholesky_factor_.copy(),
+        model.b_.copy(),
+        model.n_samples_seen_,
+        model.predict(Zt),
+        model.casadi_param_values(),
+    )
+    Yn = Y[60:70].copy()
+    Yn[-1, 1] = np.nan
+    for bad_Z, bad_Y in [
+        (Z[60:70], Yn),
+        (Z[60:70, :2], Y[60:70]),
+        (Z[60:70], Y[60:70, :1]),
+        (Z[60:70], Y[60:69]),
+        (Z[60:60], Y[60:60]),
+    ]:
+        with pytest.raises(ValueError):
+            model.update(bad_Z, bad_Y)
+        np.testing.assert_array_equal(model.cholesky_factor_, before[0])
+        np.testing.assert_array_equal(model.b_, before[1])
+        assert model.n_samples_seen_ == before[2]
+        np.testing.assert_array_equal(model.predict(Zt), before[3])
+        np.testing.assert_array_equal(model.casadi_param_values(), before[4])
+    # a numerically impossible update (overflowing features) is rejected atomically as well
+    model.standardizer_ = type(model.standardizer_)(
+        model.standardizer_.z_mean,
+        model.standardizer_.z_std,
+        model.standardizer_.y_mean,
+        np.full(2, 1e-310),
+    )
+    with (
+        pytest.raises(FloatingPointError),
+        np.errstate(over="ignore", invalid="ignore", divide="ignore"),
+    ):
+        model.update(Z[60:61], Y[60:61] * 1e300)
+    np.testing.assert_array_equal(model.cholesky_factor_, before[0])
+    assert model.n_samples_seen_ == before[2]
