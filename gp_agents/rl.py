@@ -1,0 +1,411 @@
+"""Model-free RL baseline (stable-baselines3) behind the same ``act(obs)`` interface as the MPC.
+
+An :class:`RLAgent` is a frozen SB3 policy (SAC or PPO) plus the preprocessing it was trained
+with, so it runs in the plain Gymnasium loop on the registered env exactly as ``gym.make``
+returns it::
+
+    env = gym.make("gp_envs/CartPoleSwingUp-v0", scenario="online")
+    agent = RLAgent.load("benchmarks/models/cartpole/sac", env)
+    obs, _ = env.reset(seed=0)
+    while True:
+        a = agent.act(obs)
+        nobs, r, te, tr, info = env.step(a)
+        agent.observe(obs, a, nobs)
+        obs = nobs
+        if te or tr:
+            break
+
+Preprocessing (part of the agent, never of the env; standard Gymnasium wrappers for training):
+
+1. :class:`AngleFeatures` replaces every angle ``obs[i]``, ``i`` in
+   ``env.unwrapped.nominal_model.angle_indices``, by ``(cos, sin)`` appended at the end: the
+   network sees a continuous feature where the env wraps the angle.
+2. SB3 ``VecNormalize`` running mean/std normalization of those features (statistics frozen
+   after training, saved as a pickle).
+3. :class:`NormalizedAction`: the policy acts in ``[-1, 1]^m``; the wrapper maps affinely onto the
+   env's action box ``[low, high]``.
+
+A saved agent is a directory::
+
+    model.zip          SB3 model (policy weights; no replay buffer)
+    vecnormalize.pkl   VecNormalize statistics (only if observation normalization was used)
+    metadata.json      algorithm, env id, scenario, spaces, preprocessing, hyperparameters, seed,
+                       training steps, wall-clock training time, library versions
+
+stable-baselines3 and torch are imported at the top of this module; the core package does not
+import it eagerly, so ``gp_envs``/``gp_agents`` work without the RL extra.
+"""
+
+from __future__ import annotations
+
+import json
+import pickle
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import stable_baselines3
+import torch
+from gymnasium import spaces
+from stable_baselines3 import PPO, SAC
+from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.monitor import Monitor
+from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+__all__ = ["ALGORITHMS", "AngleFeatures", "NormalizedAction", "RLAgent", "make_training_vec_env",
+           "rollout", "wrap_env"]
+
+ALGORITHMS: dict[str, type[BaseAlgorithm]] = {"sac": SAC, "ppo": PPO}
+"""Supported SB3 algorithms by lower-case name."""
+
+MODEL_FILE = "model.zip"
+VECNORM_FILE = "vecnormalize.pkl"
+METADATA_FILE = "metadata.json"
+
+
+# --------------------------------------------------------------------------- wrappers
+def angle_features(obs: np.ndarray, angle_indices: Sequence[int]) -> np.ndarray:
+    """Replace angles by their cosine and sine.
+
+    Args:
+        obs: (..., n) observations; ``obs[..., i]`` in radians for ``i`` in ``angle_indices``.
+        angle_indices: indices of the angle components.
+
+    Returns:
+        (..., n + len(angle_indices)) float32: the non-angle components in their original order,
+        then ``cos`` of each angle, then ``sin`` of each angle.
+    """
+    obs = np.asarray(obs, dtype=np.float64)
+    idx = list(angle_indices)
+    if not idx:
+        return obs.astype(np.float32)
+    keep = [i for i in range(obs.shape[-1]) if i not in set(idx)]
+    ang = obs[..., idx]
+    return np.concatenate([obs[..., keep], np.cos(ang), np.sin(ang)], axis=-1).astype(np.float32)
+
+
+class AngleFeatures(gym.ObservationWrapper):
+    """Observation wrapper: angles -> ``(cos, sin)`` features (see :func:`angle_features`).
+
+    Args:
+        env: an env with a ``Box(n,)`` observation space.
+        angle_indices: indices of the angle components (e.g.
+            ``env.unwrapped.nominal_model.angle_indices``).
+    """
+
+    def __init__(self, env: gym.Env, angle_indices: Sequence[int]) -> None:
+        super().__init__(env)
+        box = env.observation_space
+        if not isinstance(box, spaces.Box) or len(box.shape) != 1:
+            raise ValueError(f"AngleFeatures needs a 1-D Box observation space, got {box}")
+        n = box.shape[0]
+        self.angle_indices = tuple(int(i) for i in angle_indices)
+        if any(not 0 <= i < n for i in self.angle_indices) or len(set(self.angle_indices)) != len(
+                self.angle_indices):
+            raise ValueError(f"angle indices {self.angle_indices} invalid for {n} observations")
+        keep = [i for i in range(n) if i not in set(self.angle_indices)]
+        k = len(self.angle_indices)
+        low = np.concatenate([box.low[keep], -np.ones(2 * k)]).astype(np.float32)
+        high = np.concatenate([box.high[keep], np.ones(2 * k)]).astype(np.float32)
+        self.observation_space = spaces.Box(low, high, dtype=np.float32)
+
+    def observation(self, observation: np.ndarray) -> np.ndarray:
+        """(n,) raw observation -> (n + k,) features."""
+        return angle_features(observation, self.angle_indices)
+
+
+class NormalizedAction(gym.ActionWrapper):
+    """Action wrapper: the agent acts in ``[-1, 1]^m``, the env receives ``[low, high]``.
+
+    ``u = low + (a + 1) / 2 * (high - low)`` after clipping ``a`` to ``[-1, 1]``;
+    :meth:`reverse_action` is the inverse map. Needs a bounded ``Box`` action space.
+    """
+
+    def __init__(self, env: gym.Env) -> None:
+        super().__init__(env)
+        box = env.action_space
+        if not isinstance(box, spaces.Box) or not np.all(np.isfinite(box.low)) or not np.all(
+                np.isfinite(box.high)):
+            raise ValueError(f"NormalizedAction needs a bounded Box action space, got {box}")
+        self.low = box.low.astype(np.float64)
+        self.high = box.high.astype(np.float64)
+        self.action_space = spaces.Box(-1.0, 1.0, shape=box.shape, dtype=np.float32)
+
+    def action(self, action: np.ndarray) -> np.ndarray:
+        """(m,) action in ``[-1, 1]`` -> (m,) float32 action in ``[low, high]`` (env units)."""
+        return scale_action(action, self.low, self.high)
+
+    def reverse_action(self, action: np.ndarray) -> np.ndarray:
+        """(m,) action in env units -> (m,) float32 action in ``[-1, 1]``."""
+        a = np.asarray(action, dtype=np.float64)
+        return np.clip(2.0 * (a - self.low) / (self.high - self.low) - 1.0, -1.0, 1.0).astype(
+            np.float32)
+
+
+def scale_action(action: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
+    """Map ``[-1, 1]^m`` (clipped) affinely onto ``[low, high]``; float32, clipped to the box."""
+    a = np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0)
+    u = low + 0.5 * (a + 1.0) * (high - low)
+    return np.clip(u.astype(np.float32), low.astype(np.float32), high.astype(np.float32))
+
+
+def wrap_env(env: gym.Env, angle_indices: Sequence[int]) -> gym.Env:
+    """The agent's per-env preprocessing: :class:`AngleFeatures` then :class:`NormalizedAction`."""
+    return NormalizedAction(AngleFeatures(env, angle_indices))
+
+
+def make_training_vec_env(env_id: str, scenario: str, seed: int, n_envs: int = 1,
+                          norm_obs: bool = True, norm_reward: bool = False, gamma: float = 0.99
+                          ) -> VecNormalize:
+    """Vectorized training env: ``gym.make`` -> :func:`wrap_env` -> Monitor -> VecNormalize.
+
+    Args:
+        env_id: registered id, e.g. ``"gp_envs/CartPoleSwingUp-v0"``.
+        scenario: the env's scenario name.
+        seed: seeds the sub-envs' first resets (``seed + i`` for sub-env ``i``).
+        n_envs: number of sub-envs (``DummyVecEnv``, one process).
+        norm_obs, norm_reward: VecNormalize options (reward normalization is training-only).
+        gamma: discount used by VecNormalize's return estimate for reward normalization.
+    """
+    import gp_envs  # noqa: F401  (registers the envs)
+
+    def factory() -> gym.Env:
+        env = gym.make(env_id, scenario=scenario)
+        return Monitor(wrap_env(env, env.unwrapped.nominal_model.angle_indices))
+
+    venv = DummyVecEnv([factory] * n_envs)
+    venv.seed(seed)
+    return VecNormalize(venv, norm_obs=norm_obs, norm_reward=norm_reward, gamma=gamma)
+
+
+# --------------------------------------------------------------------------- agent
+def _shape(x: Sequence[int]) -> list[int]:
+    return [int(v) for v in x]
+
+
+class RLAgent:
+    """A frozen SB3 policy with its preprocessing, acting on raw env observations.
+
+    Args:
+        model: trained SB3 model (acts on :func:`angle_features` -> normalized features, outputs
+            actions in ``[-1, 1]^m``).
+        metadata: the record saved next to the model; must contain ``algo``, ``env_id``,
+            ``scenario``, ``obs_shape``, ``action_shape``, ``action_low``, ``action_high``,
+            ``angle_indices``; may contain ``training_steps``, ``seed``, ``hyperparameters``,
+            ``train_time_s``.
+        obs_normalizer: frozen ``VecNormalize`` whose ``normalize_obs`` is applied to the
+            features, or None.
+        deterministic: act with the policy's mean action (default) instead of sampling.
+
+    Attributes:
+        algo, env_id, scenario, training_steps, seed, hyperparameters, train_time_s: from
+            ``metadata``.
+    """
+
+    def __init__(self, model: BaseAlgorithm, metadata: Mapping[str, Any],
+                 obs_normalizer: VecNormalize | None = None, deterministic: bool = True) -> None:
+        required = ("algo", "env_id", "scenario", "obs_shape", "action_shape", "action_low",
+                    "action_high", "angle_indices")
+        missing = [k for k in required if k not in metadata]
+        if missing:
+            raise ValueError(f"RLAgent metadata lacks {missing}")
+        self.model = model
+        self.metadata: dict[str, Any] = dict(metadata)
+        self.obs_normalizer = obs_normalizer  # only normalize_obs is used: never updates stats
+        self.deterministic = bool(deterministic)
+        self.algo: str = str(metadata["algo"])
+        self.env_id: str = str(metadata["env_id"])
+        self.scenario: str = str(metadata["scenario"])
+        self.training_steps: int = int(metadata.get("training_steps", model.num_timesteps))
+        self.seed: int | None = metadata.get("seed")
+        self.hyperparameters: dict[str, Any] = dict(metadata.get("hyperparameters", {}))
+        self.train_time_s: float | None = metadata.get("train_time_s")
+        self.obs_shape = tuple(_shape(metadata["obs_shape"]))
+        self.action_shape = tuple(_shape(metadata["action_shape"]))
+        self.angle_indices = tuple(int(i) for i in metadata["angle_indices"])
+        self._low = np.asarray(metadata["action_low"], dtype=np.float64)
+        self._high = np.asarray(metadata["action_high"], dtype=np.float64)
+
+    # ------------------------------------------------------------------ acting
+    def preprocess(self, obs: np.ndarray) -> np.ndarray:
+        """(n,) raw observation -> (n + k,) float32 policy input (features, normalized).
+
+        Raises:
+            ValueError: ``obs`` has the wrong shape or is not finite.
+        """
+        x = np.asarray(obs, dtype=np.float64)
+        if x.shape != self.obs_shape:
+            raise ValueError(f"obs must have shape {self.obs_shape}, got {x.shape}")
+        if not np.all(np.isfinite(x)):
+            raise ValueError(f"obs must be finite, got {x}")
+        feats = angle_features(x, self.angle_indices)
+        if self.obs_normalizer is not None:
+            feats = np.asarray(self.obs_normalizer.normalize_obs(feats[None]), np.float32)[0]
+        return feats
+
+    def act(self, obs: np.ndarray, deterministic: bool | None = None) -> np.ndarray:
+        """Action for a raw observation.
+
+        Args:
+            obs: (n,) observation as returned by the env (physical units).
+            deterministic: override :attr:`deterministic` for this call.
+
+        Returns:
+            (m,) float32 action inside the env's action box (physical units).
+
+        Raises:
+            ValueError: ``obs`` has the wrong shape or contains NaN/inf.
+        """
+        det = self.deterministic if deterministic is None else bool(deterministic)
+        a, _ = self.model.predict(self.preprocess(obs)[None], deterministic=det)
+        return scale_action(np.asarray(a).reshape(self.action_shape), self._low, self._high)
+
+    def observe(self, obs: np.ndarray, action: np.ndarray, next_obs: np.ndarray) -> None:
+        """Receive a transition; a frozen policy does not learn, so this does nothing.
+
+        Args:
+            obs: (n,) observation before the step.
+            action: (m,) action applied.
+            next_obs: (n,) observation after the step.
+        """
+        del obs, action, next_obs
+
+    def reset(self) -> None:
+        """Start of an episode; the policies here are memoryless, so nothing to reset."""
+
+    # ------------------------------------------------------------------ persistence
+    @classmethod
+    def metadata_for(cls, env: gym.Env, algo: str, **extra: Any) -> dict[str, Any]:
+        """The metadata record for a model trained on ``env`` (a ``gym.make``-made env).
+
+        Args:
+            env: the env (unwrapped by us; ``gym.make`` wrappers are fine).
+            algo: ``"sac"`` or ``"ppo"``.
+            extra: further fields (``training_steps``, ``seed``, ``hyperparameters``, ...).
+        """
+        if env.spec is None:
+            raise ValueError("env has no spec; create it with gym.make")
+        base = env.unwrapped
+        return {
+            "algo": algo,
+            "env_id": env.spec.id,
+            "scenario": getattr(base, "scenario", None),
+            "obs_shape": _shape(env.observation_space.shape),
+            "action_shape": _shape(env.action_space.shape),
+            "action_low": env.action_space.low.astype(float).tolist(),
+            "action_high": env.action_space.high.astype(float).tolist(),
+            "angle_indices": [int(i) for i in base.nominal_model.angle_indices],
+            "preprocessing": ["AngleFeatures (cos, sin of angle_indices)",
+                              "VecNormalize observation statistics (frozen)",
+                              "NormalizedAction ([-1, 1] -> action box)"],
+            "versions": {"stable_baselines3": stable_baselines3.__version__,
+                         "torch": torch.__version__, "gymnasium": gym.__version__},
+            **extra,
+        }
+
+    def save(self, path: str | Path) -> Path:
+        """Write the agent to directory ``path`` (created); returns the directory."""
+        out = Path(path)
+        out.mkdir(parents=True, exist_ok=True)
+        self.model.save(out / MODEL_FILE, exclude=["replay_buffer", "rollout_buffer"])
+        vec = out / VECNORM_FILE
+        if self.obs_normalizer is not None:
+            self.obs_normalizer.save(str(vec))
+        elif vec.exists():
+            vec.unlink()
+        meta = dict(self.metadata, training_steps=self.training_steps,
+                    obs_normalization=self.obs_normalizer is not None)
+        (out / METADATA_FILE).write_text(json.dumps(meta, indent=2, sort_keys=True) + "\n")
+        return out
+
+    @classmethod
+    def load(cls, path: str | Path, env: gym.Env, deterministic: bool = True) -> RLAgent:
+        """Load a saved agent and check that it was trained for ``env``.
+
+        Args:
+            path: directory written by :meth:`save` (or the ``model.zip`` inside it).
+            env: the env the agent will act in (made with ``gym.make``).
+            deterministic: see :class:`RLAgent`.
+
+        Raises:
+            FileNotFoundError: no saved agent at ``path``.
+            ValueError: the agent was trained for another env id, scenario or spaces.
+        """
+        d = Path(path)
+        if d.is_file():
+            d = d.parent
+        meta_file = d / METADATA_FILE
+        if not meta_file.is_file() or not (d / MODEL_FILE).is_file():
+            raise FileNotFoundError(f"no saved RLAgent ({METADATA_FILE} + {MODEL_FILE}) in {d}")
+        meta = json.loads(meta_file.read_text())
+        cls._check_env(meta, env, d)
+        algo = meta["algo"]
+        if algo not in ALGORITHMS:
+            raise ValueError(f"{d}: unknown algorithm {algo!r}; known: {sorted(ALGORITHMS)}")
+        model = ALGORITHMS[algo].load(d / MODEL_FILE, device="cpu")
+        normalizer = None
+        if meta.get("obs_normalization", False):
+            with open(d / VECNORM_FILE, "rb") as fh:
+                normalizer = pickle.load(fh)  # frozen statistics; no venv needed to normalize
+            normalizer.training = False
+        return cls(model, meta, normalizer, deterministic=deterministic)
+
+    @staticmethod
+    def _check_env(meta: Mapping[str, Any], env: gym.Env, where: Path | str) -> None:
+        env_id = env.spec.id if env.spec is not None else None
+        scenario = getattr(env.unwrapped, "scenario", None)
+        problems = []
+        if env_id != meta["env_id"]:
+            problems.append(f"env id {env_id!r} != trained {meta['env_id']!r}")
+        if scenario != meta["scenario"]:
+            problems.append(f"scenario {scenario!r} != trained {meta['scenario']!r}")
+        if _shape(env.observation_space.shape) != _shape(meta["obs_shape"]):
+            problems.append(f"observation shape {env.observation_space.shape} != trained "
+                            f"{tuple(meta['obs_shape'])}")
+        if _shape(env.action_space.shape) != _shape(meta["action_shape"]):
+            problems.append(f"action shape {env.action_space.shape} != trained "
+                            f"{tuple(meta['action_shape'])}")
+        elif not (np.allclose(env.action_space.low, meta["action_low"])
+                  and np.allclose(env.action_space.high, meta["action_high"])):
+            problems.append("action bounds differ from the trained ones")
+        if problems:
+            raise ValueError(f"RL agent in {where} does not fit this env: " + "; ".join(problems))
+
+    def __repr__(self) -> str:
+        return (f"RLAgent(algo={self.algo!r}, env_id={self.env_id!r}, scenario={self.scenario!r}, "
+                f"training_steps={self.training_steps}, seed={self.seed})")
+
+
+
+def rollout(agent: RLAgent, env: gym.Env, seed: int) -> dict[str, Any]:
+    """One episode of ``agent`` in ``env`` in the plain loop (reset, act, step, observe).
+
+    Args:
+        agent: the agent (anything with ``reset``, ``act`` and ``observe``).
+        env: a ``gym.make``-made env (its TimeLimit truncates the episode).
+        seed: ``env.reset`` seed.
+
+    Returns:
+        ``return`` (sum of rewards), ``success`` (``info["is_success"]`` at the last step, the
+        key SB3 reads), ``success_any`` (``info["is_success"]`` at some step), ``length``
+        (steps), ``final_distance`` (``info["distance_to_goal"]`` at the end, in the task's
+        units) and ``end`` (termination reason or "time limit").
+    """
+    agent.reset()
+    obs, info = env.reset(seed=seed)
+    ret, steps, ever = 0.0, 0, False
+    while True:
+        action = agent.act(obs)
+        next_obs, reward, terminated, truncated, info = env.step(action)
+        agent.observe(obs, action, next_obs)
+        obs = next_obs
+        ret += float(reward)
+        steps += 1
+        ever = ever or bool(info.get("is_success", False))
+        if terminated or truncated:
+            break
+    return {"return": ret, "success": bool(info.get("is_success", False)), "success_any": ever,
+            "length": steps, "final_distance": float(info.get("distance_to_goal", np.nan)),
+            "end": info.get("termination_reason") or "time limit"}
