@@ -17,7 +17,7 @@ from typing import Any
 
 from gp_agents.data import Transitions, collect_initial_data
 from gp_agents.learners import SSGP, ExactGP, IncrementalSSGP
-from gp_agents.mpc import PseudospectralMPC
+from gp_agents.mpc import PseudospectralMPC, online_ssgp
 from gp_agents.residual import ResidualModel
 
 __all__ = [
@@ -29,6 +29,7 @@ __all__ = [
     "ResidualModel",
     "Transitions",
     "collect_initial_data",
+    "online_ssgp",
 ]
 
 

@@ -10,7 +10,7 @@ import pytest
 import gp_envs
 from gp_agents.data import collect_initial_data
 from gp_agents.learners import IncrementalSSGP
-from gp_agents.mpc import PseudospectralMPC
+from gp_agents.mpc import PseudospectralMPC, online_ssgp
 from gp_agents.residual import ResidualModel
 
 CART = "gp_envs/CartPoleSwingUp-v0"
@@ -210,8 +210,7 @@ def test_quadrotor_nominal_mass_error_leaves_a_height_offset():
 @pytest.mark.parametrize("seed", [0, 1])
 def test_ssgp_mpc_swings_up_the_damped_cart_pole(seed):
     env = gym.make(CART, scenario="online")
-    agent = PseudospectralMPC.from_env(env, IncrementalSSGP(50, forgetting_factor=0.995,
-                                                                 hyperparameters="exact"))
+    agent = PseudospectralMPC.from_env(env, online_ssgp())
     agent.pretrain(collect_initial_data(env, 200, seed=seed))
     _, _, info = run_episode(env, agent, seed=seed)
     assert info["success"]
@@ -220,9 +219,20 @@ def test_ssgp_mpc_swings_up_the_damped_cart_pole(seed):
 @pytest.mark.slow
 def test_ssgp_mpc_removes_the_quadrotor_height_offset():
     env = gym.make(QUAD, scenario="gp")
-    agent = PseudospectralMPC.from_env(env, IncrementalSSGP(50, forgetting_factor=0.995,
-                                                                 hyperparameters="exact"))
+    agent = PseudospectralMPC.from_env(env, online_ssgp())
     agent.pretrain(collect_initial_data(env, 200, seed=0))
     obs, _, _ = run_episode(env, agent, seed=0)
     goal = env.unwrapped.nominal_model.task.goal
     assert np.max(np.abs(obs[:3] - goal[:3])) < 0.01
+
+
+def test_learner_trained_against_one_nominal_model_is_not_silently_reused_with_another():
+    env = gym.make(DUBINS)
+    data = collect_initial_data(env, 60, seed=0)
+    obs, _ = env.reset(seed=0)
+    agent = PseudospectralMPC.from_env(env, IncrementalSSGP(10)).pretrain(data)
+    assert agent.residual.model is env.unwrapped.nominal_model  # targets use the current one
+    agent.act(obs)
+    obs, _ = env.reset(seed=1)  # redraws the nominal model
+    with pytest.raises(RuntimeError, match="pretrain"):
+        agent.act(obs)
