@@ -168,11 +168,12 @@ class PseudospectralMPC:
         state_margin: fraction of each finite state range by which the plan keeps inside the
             env's state box (the box ends the episode; a plan on its edge crosses it between
             nodes or under model error). 0.05 shrinks ``[-1, 1]`` to ``[-0.95, 0.95]``.
-        state_penalty: the (shrunk) state box is a *soft* constraint of the plan: the running
-            cost gains ``state_penalty * sum(max(0, x - ub)^2 + max(0, lb - x)^2)``. A hard box
-            makes the NLP infeasible whenever the measured state cannot be kept inside it
-            (e.g. a cart moving fast towards the track's end), and an infeasible NLP gives no
-            useful action; the penalty keeps the best effort. ``None`` makes it hard.
+        state_penalty: the env's state box is a hard constraint of the plan, the margin inside
+            it a *soft* one: the running cost gains ``state_penalty * sum(max(0, x - ub)^2 +
+            max(0, lb - x)^2)`` over the shrunk box. A hard margin would make the NLP infeasible
+            whenever the measured state is already in it (e.g. a cart moving fast towards the
+            track's end), and an infeasible NLP gives no useful action. ``None`` makes the
+            shrunk box hard.
         obstacle_margin: metres added to obstacle radius plus body radius in the plan, for the
             same reason.
         jit: compile the NLP's functions to C with the system compiler (CasADi JIT): a few
@@ -187,7 +188,7 @@ class PseudospectralMPC:
                  uncertainty_radius: float = 0.0, control_at_t0: ControlAtT0 = "period_mean",
                  solver: str = "ipopt", solver_options: Mapping[str, Any] | None = None,
                  max_solve_time: float | None = 1.0, max_iterations: int = 500,
-                 state_margin: float = 0.05, state_penalty: float | None = 1e3,
+                 state_margin: float = 0.05, state_penalty: float | None = 1e4,
                  obstacle_margin: float = 0.1, jit: bool = False) -> None:
         if not isinstance(model, ControlModel):
             raise TypeError(f"model must be a gp_envs ControlModel, got {type(model).__name__}")
@@ -392,7 +393,8 @@ class PseudospectralMPC:
         problem = OptimalControlProblem(
             n_states=model.n_states, n_controls=model.n_controls, dynamics=dynamics,
             n_params=k + theta_size, running_cost=running_cost, terminal_cost=terminal_cost,
-            t0=0.0, tf=self.horizon, x_lb=None if soft else x_lb, x_ub=None if soft else x_ub,
+            t0=0.0, tf=self.horizon, x_lb=model.x_lb if soft else x_lb,
+            x_ub=model.x_ub if soft else x_ub,
             u_lb=model.u_lb,
             u_ub=model.u_ub, x0=np.zeros(model.n_states), path_constraints=path,
         )
