@@ -11,11 +11,12 @@ $(VENV)/.installed: pyproject.toml
 	$(PY) -m pip install -q --upgrade pip
 	# the CPU build of torch from this machine's disk; a bare `torch` would pull CUDA
 	$(PY) -m pip install -q torch==2.13.0
-	$(PY) -m pip install -q -e ".[rl,dev]"
+	$(PY) -m pip install -q -e ".[rl,dev,bench]"
 	touch $@
 
 bench: $(VENV)/.installed
-	$(PY) -m benchmarks.demo
+	$(PY) -m benchmarks --preset quick
+	$(PY) -m benchmarks.update_readme quick
 
 test: $(VENV)/.installed
 	$(PY) -m ruff check .

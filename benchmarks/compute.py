@@ -1,0 +1,117 @@
+"""Compute measurements of the SSGP-MPC: step time against samples learned, update time against r.
+
+Two trial kinds (scheduled and stored like episodes, see :mod:`benchmarks.trial`):
+
+- ``"ssgp-act-scaling"`` (``param`` = samples learned before the episode, e.g. 200, 1000,
+  5000): the ``ssgp-mpc`` recipe pretrained on the usual initial data, then fed
+  ``param - n_init`` further transitions of the same crude data controller
+  (:func:`gp_agents.collect_initial_data`, another seed) with ``IncrementalSSGP.update``; the
+  env is reset with the trial's seed and one closed-loop episode is run with every ``act``
+  timed. An SSGP's cost does not grow with the samples seen: this checks it.
+- ``"ssgp-update-time"`` (``param`` = r, the number of frequencies): an
+  ``online_ssgp(r)`` (the SSGP-MPC's learner recipe with ``r`` frequencies) fitted on the initial
+  data, then ``learner.update`` timed on each of 200 further transitions, one sample at a time
+  (what the MPC does at every control period).
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+
+from benchmarks.controllers import build_controller, make_env
+from benchmarks.trial import TrialSpec
+
+N_TIMED_UPDATES = 200
+"""Single-sample updates timed per ``ssgp-update-time`` trial."""
+
+
+def _extra_seed(seed: int) -> int:
+    return 10_000 + seed
+
+
+def run_act_scaling(spec: TrialSpec) -> dict[str, Any]:
+    """SSGP-MPC step times over an episode after learning ``spec.param`` samples."""
+    from gp_agents import collect_initial_data
+
+    n_samples = int(spec.param if spec.param is not None else spec.n_init)
+    if n_samples < spec.n_init:
+        raise ValueError(f"param (samples learned) must be >= n_init={spec.n_init}")
+    env = make_env(spec.env, spec.scenario)
+    built = build_controller("ssgp-mpc", env, spec.env, spec.seed, spec.n_init)
+    agent = built.agent
+    update_s = 0.0
+    if n_samples > spec.n_init:
+        extra = collect_initial_data(env, n_samples - spec.n_init, seed=_extra_seed(spec.seed))
+        Z, Y = agent.residual.targets(extra.X, extra.U, extra.X_next)
+        t0 = time.perf_counter()
+        agent.learner.update(Z, Y)
+        update_s = time.perf_counter() - t0
+    obs, _ = env.reset(seed=spec.seed)
+    agent.reset()
+    act_times, rewards, samples = [], [], []
+    info: dict[str, Any] = {"success": False}
+    while True:
+        t0 = time.perf_counter()
+        action = agent.act(obs)
+        act_times.append(time.perf_counter() - t0)
+        samples.append(int(agent.learner.n_samples_seen_))
+        next_obs, reward, terminated, truncated, info = env.step(action)
+        agent.observe(obs, action, next_obs)
+        rewards.append(float(reward))
+        obs = next_obs
+        if terminated or truncated:
+            break
+        if spec.max_steps is not None and len(act_times) >= spec.max_steps:
+            break
+    act = np.array(act_times)
+    metrics = {
+        "samples_before_episode": n_samples,
+        "batch_update_s": update_s,
+        "act_median_ms": 1e3 * float(np.median(act)),
+        "act_p95_ms": 1e3 * float(np.percentile(act, 95)),
+        "act_max_ms": 1e3 * float(act.max()),
+        "steps": len(act_times),
+        "success": bool(info["success"]),
+        "cost": -float(np.sum(rewards)),
+        "solver_failures": int(agent.n_failures),
+    }
+    env.close()
+    return {"metrics": metrics, "arrays": {"act_time": act, "learner_samples": np.array(samples),
+                                           "reward": np.array(rewards)}}
+
+
+def run_update_time(spec: TrialSpec) -> dict[str, Any]:
+    """Time ``IncrementalSSGP.update`` on single samples for ``r = spec.param``."""
+    from gp_agents import collect_initial_data, online_ssgp
+    from gp_agents.residual import ResidualModel
+
+    r = int(spec.param if spec.param is not None else 50)
+    env = make_env(spec.env, spec.scenario)
+    data = collect_initial_data(env, spec.n_init, seed=spec.seed)
+    extra = collect_initial_data(env, N_TIMED_UPDATES, seed=_extra_seed(spec.seed))
+    residual = ResidualModel(env.unwrapped.nominal_model)
+    Z0, Y0 = residual.targets(data.X, data.U, data.X_next)
+    Z, Y = residual.targets(extra.X, extra.U, extra.X_next)
+    learner = online_ssgp(r)
+    t0 = time.perf_counter()
+    learner.fit(Z0, Y0)
+    fit_s = time.perf_counter() - t0
+    times = np.empty(len(Z))
+    for i in range(len(Z)):
+        t0 = time.perf_counter()
+        learner.update(Z[i:i + 1], Y[i:i + 1])
+        times[i] = time.perf_counter() - t0
+    env.close()
+    metrics = {
+        "r": r,
+        "n_outputs": int(Y.shape[1]),
+        "fit_s": fit_s,
+        "update_median_ms": 1e3 * float(np.median(times)),
+        "update_p95_ms": 1e3 * float(np.percentile(times, 95)),
+        "update_max_ms": 1e3 * float(times.max()),
+        "updates": len(times),
+    }
+    return {"metrics": metrics, "arrays": {"update_time": times}}

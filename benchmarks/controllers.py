@@ -1,0 +1,248 @@
+"""Every controller recipe and every env of the benchmark suite, in one place.
+
+A controller is named by a short string (``"ssgp-mpc"``, ``"sac"``, ...) and built for one env
+and seed by :func:`build_controller`. Change a recipe here and every preset follows.
+
+MPC recipes (:class:`gp_agents.PseudospectralMPC`, built after ``env.reset`` so they plan with
+the episode's nominal model; for the Dubins scenario that model is redrawn at every reset):
+
+=================  ======================================================================
+nominal-mpc        nominal physics only, receding horizon
+oracle-mpc         the true model (``from_env(env, oracle=True)``): an upper bound
+gp-mpc             nominal + :class:`ExactGP` fitted once on the initial data, no online learning
+ssgp-mpc           nominal + :func:`gp_agents.online_ssgp` (``IncrementalSSGP(50,
+                   forgetting_factor=0.995)``, own-likelihood hyperparameters with a
+                   length-scale floor) pretrained on the initial data, learning online
+<base>-episodic     the same model, planned once over the whole episode and run open loop
+=================  ======================================================================
+
+RL recipes load the shipped stable-baselines3 policies from ``benchmarks/models/<env>/<algo>/``
+(:class:`gp_agents.rl.RLAgent`); a missing model (or one trained for another scenario) makes the
+controller *unavailable* for that env, which the runner records instead of crashing.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+
+import gp_envs  # noqa: F401  (registers the envs)
+
+MODELS_DIR = Path(__file__).resolve().parent / "models"
+"""Where the shipped RL policies live: ``<env short name>/<algo>/``."""
+
+N_INITIAL_POINTS = 200
+"""Initial transitions collected for the learning MPCs (paper: 200 points)."""
+
+
+@dataclass(frozen=True)
+class EnvInfo:
+    """A benchmark env: registered id and the scenarios the suite runs."""
+
+    env_id: str
+    scenarios: tuple[str, ...]
+    default_scenario: str
+
+
+ENVS: dict[str, EnvInfo] = {
+    "cartpole": EnvInfo("gp_envs/CartPoleSwingUp-v0", ("gp", "online"), "online"),
+    "quadrotor": EnvInfo("gp_envs/Quadrotor-v0", ("gp", "online"), "online"),
+    "dubins": EnvInfo("gp_envs/DubinsObstacle-v0", ("paper",), "paper"),
+}
+"""Benchmark envs by short name."""
+
+
+@dataclass(frozen=True)
+class ControllerRecipe:
+    """How to build one named controller.
+
+    Attributes:
+        name: registry key.
+        label: display name in tables and plots.
+        family: ``"mpc"`` or ``"rl"``.
+        description: one line for ``--list-controllers`` and reports.
+        learner: ``None``, ``"exact"`` (offline :class:`ExactGP`) or ``"ssgp"``
+            (:class:`IncrementalSSGP`); MPC only.
+        oracle: plan with the true model (upper bound); MPC only.
+        mode: ``"receding"`` or ``"episodic"``; MPC only.
+        learn_online: feed closed-loop transitions to the learner; MPC only.
+        algo: ``"sac"`` or ``"ppo"``; RL only.
+    """
+
+    name: str
+    label: str
+    family: str
+    description: str
+    learner: str | None = None
+    oracle: bool = False
+    mode: str = "receding"
+    learn_online: bool = False
+    algo: str | None = None
+
+    @property
+    def base(self) -> str:
+        """Name of the model variant without the mode (``"ssgp"`` for ``"ssgp-episodic"``)."""
+        return self.name.rsplit("-", 1)[0] if self.family == "mpc" else self.name
+
+    @property
+    def uses_initial_data(self) -> bool:
+        """Whether the recipe collects initial data before the episode."""
+        return self.learner is not None
+
+
+def _mpc_recipes() -> dict[str, ControllerRecipe]:
+    variants = {
+        "nominal": ("nominal", "nominal physics", None, False, False),
+        "oracle": ("oracle", "true model (upper bound)", None, True, False),
+        "gp": ("offline GP", "nominal + exact GP fitted once on the initial data", "exact",
+               False, False),
+        "ssgp": ("SSGP", "nominal + incremental SSGP (r=50, lambda=0.995), learning online",
+                 "ssgp", False, True),
+    }
+    out: dict[str, ControllerRecipe] = {}
+    for key, (label, desc, learner, oracle, online) in variants.items():
+        out[f"{key}-mpc"] = ControllerRecipe(
+            f"{key}-mpc", f"{label} MPC", "mpc", f"{desc}; receding-horizon MPC",
+            learner=learner, oracle=oracle, mode="receding", learn_online=online)
+        out[f"{key}-episodic"] = ControllerRecipe(
+            f"{key}-episodic", f"{label} episodic", "mpc",
+            f"{desc.split(', learning')[0]}; planned once over the episode, open loop",
+            learner=learner, oracle=oracle, mode="episodic", learn_online=False)
+    return out
+
+
+CONTROLLERS: dict[str, ControllerRecipe] = {
+    **_mpc_recipes(),
+    "sac": ControllerRecipe("sac", "SAC", "rl", "shipped stable-baselines3 SAC policy",
+                            algo="sac"),
+    "ppo": ControllerRecipe("ppo", "PPO", "rl", "shipped stable-baselines3 PPO policy",
+                            algo="ppo"),
+}
+"""The controller registry: every recipe by name."""
+
+
+class UnknownNameError(ValueError):
+    """An unknown controller, env, scenario or preset name (the message lists valid names)."""
+
+
+class ControllerUnavailableError(RuntimeError):
+    """The controller cannot run on this env/scenario (e.g. no shipped RL model)."""
+
+
+def check_name(kind: str, name: str, valid: Any) -> None:
+    """Raise :class:`UnknownNameError` listing ``valid`` when ``name`` is not among them."""
+    if name not in valid:
+        raise UnknownNameError(f"unknown {kind} {name!r}; valid {kind}s: {', '.join(valid)}")
+
+
+def check_env_scenario(env: str, scenario: str) -> None:
+    """Raise :class:`UnknownNameError` for an unknown env or a scenario it does not have."""
+    check_name("env", env, list(ENVS))
+    check_name(f"scenario of {env}", scenario, list(ENVS[env].scenarios))
+
+
+@dataclass
+class BuiltController:
+    """A controller ready for an episode.
+
+    Attributes:
+        agent: object with ``reset()``, ``act(obs)``, ``observe(obs, a, next_obs)``.
+        obs: the observation after ``env.reset(seed=seed)`` (the episode's first).
+        prior_data_steps: env steps of data used before the episode (initial data, or RL
+            training steps).
+        info: recipe details for the record (e.g. the RL model's path and training steps).
+    """
+
+    agent: Any
+    obs: Any
+    prior_data_steps: int
+    info: dict[str, Any]
+
+
+def rl_model_dir(env: str, algo: str) -> Path:
+    """Directory of the shipped RL model of ``algo`` for benchmark env ``env``."""
+    return MODELS_DIR / env / algo
+
+
+def make_env(env: str, scenario: str) -> gym.Env:
+    """``gym.make`` of a benchmark env (short name) in ``scenario``."""
+    check_env_scenario(env, scenario)
+    return gym.make(ENVS[env].env_id, scenario=scenario)
+
+
+def make_learner(kind: str) -> Any:
+    """A fresh residual learner of the recipe kind ``"exact"`` or ``"ssgp"``."""
+    from gp_agents import online_ssgp
+    from gp_agents.learners import ExactGP
+
+    if kind == "exact":
+        return ExactGP()
+    if kind == "ssgp":
+        return online_ssgp()
+    raise ValueError(f"unknown learner kind {kind!r}")
+
+
+def build_controller(name: str, env: gym.Env, env_name: str, seed: int,
+                     n_init: int = N_INITIAL_POINTS) -> BuiltController:
+    """Build controller ``name`` for ``env`` and reset ``env`` with ``seed``.
+
+    Learning recipes first collect ``n_init`` transitions with
+    :func:`gp_agents.collect_initial_data` (seeded with ``seed``; it resets the env itself),
+    then reset the env with ``seed``, build the agent on the episode's model and pretrain it.
+
+    Args:
+        name: controller name (:data:`CONTROLLERS`).
+        env: a ``gym.make``-made benchmark env.
+        env_name: its short name (key of :data:`ENVS`), for the RL model path.
+        seed: the trial's seed.
+        n_init: initial transitions for the learning recipes.
+
+    Raises:
+        UnknownNameError: unknown controller name.
+        ControllerUnavailableError: e.g. no shipped RL model for this env and scenario.
+    """
+    check_name("controller", name, list(CONTROLLERS))
+    recipe = CONTROLLERS[name]
+    if recipe.family == "rl":
+        return _build_rl(recipe, env, env_name, seed)
+    from gp_agents import PseudospectralMPC, collect_initial_data
+
+    data = None
+    if recipe.learner is not None:
+        data = collect_initial_data(env, n_init, seed=seed)
+    obs, _ = env.reset(seed=seed)
+    learner = make_learner(recipe.learner) if recipe.learner is not None else None
+    agent = PseudospectralMPC.from_env(env, learner, oracle=recipe.oracle, mode=recipe.mode,
+                                       learn_online=recipe.learn_online)
+    if data is not None:
+        agent.pretrain(data)
+    agent.reset()
+    return BuiltController(agent, obs, len(data) if data is not None else 0,
+                           {"horizon_s": agent.horizon, "n_nodes": agent.n_nodes,
+                            "n_intervals": agent.n_intervals})
+
+
+def _build_rl(recipe: ControllerRecipe, env: gym.Env, env_name: str, seed: int
+              ) -> BuiltController:
+    path = rl_model_dir(env_name, str(recipe.algo))
+    if not (path / "metadata.json").is_file() or not (path / "model.zip").is_file():
+        raise ControllerUnavailableError(f"no shipped {recipe.label} model in {path}")
+    try:
+        import torch
+
+        from gp_agents.rl import RLAgent
+    except ImportError as err:  # the rl extra is not installed
+        raise ControllerUnavailableError(f"RL extra not installed: {err}") from err
+    torch.set_num_threads(1)
+    try:
+        agent = RLAgent.load(path, env)
+    except ValueError as err:  # trained for another scenario / spaces
+        raise ControllerUnavailableError(str(err)) from err
+    obs, _ = env.reset(seed=seed)
+    agent.reset()
+    return BuiltController(agent, obs, int(agent.training_steps),
+                           {"model_dir": str(path.relative_to(MODELS_DIR.parent.parent)),
+                            "training_steps": int(agent.training_steps)})

@@ -1,0 +1,227 @@
+"""Named experiments and presets: which trials to run and which report sections to draw.
+
+An :class:`Experiment` is a list of trials (:class:`benchmarks.trial.TrialSpec`) and the report
+sections (:mod:`benchmarks.report`) that present them; a :class:`Preset` is a named list of
+experiments. Trials are identified by their key, so experiments that need the same episode
+(e.g. ``mpc-acceptance`` and ``paper-tables``) share it within one results directory.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+
+from benchmarks.controllers import CONTROLLERS, ENVS, check_env_scenario, check_name
+from benchmarks.trial import TrialSpec
+
+MPC_BASES = ("nominal", "gp", "ssgp", "oracle")
+"""The four model variants of the paper's tables, in the tables' order."""
+MPC_RECEDING = tuple(f"{b}-mpc" for b in MPC_BASES)
+MPC_EPISODIC = tuple(f"{b}-episodic" for b in MPC_BASES)
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """A set of trials and how the report presents them.
+
+    Attributes:
+        name: short name (section anchor, CLI listing).
+        title: section title in the report.
+        description: what it measures, for the report and ``--list-presets``.
+        specs: the trials.
+        sections: report section names, in order (see :data:`benchmarks.report.SECTIONS`).
+    """
+
+    name: str
+    title: str
+    description: str
+    specs: tuple[TrialSpec, ...]
+    sections: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class Preset:
+    """A named list of experiments (one results directory, one report)."""
+
+    name: str
+    description: str
+    experiments: tuple[Experiment, ...]
+
+    @property
+    def specs(self) -> list[TrialSpec]:
+        """All trials of all experiments, each once, in order."""
+        return list(dict.fromkeys(s for e in self.experiments for s in e.specs))
+
+
+def episodes(controllers: Iterable[str], envs: Iterable[tuple[str, str]], seeds: Iterable[int],
+             max_steps: int | None = None) -> tuple[TrialSpec, ...]:
+    """Episode trials for every controller x (env, scenario) x seed."""
+    envs, seeds, controllers = list(envs), list(seeds), list(controllers)
+    return tuple(TrialSpec("episode", env, scenario, c, s, max_steps=max_steps)
+                 for env, scenario in envs for c in controllers for s in seeds)
+
+
+def custom_experiment(controllers: Sequence[str], envs: Sequence[str],
+                      scenarios: Sequence[str] | None, seeds: Sequence[int],
+                      max_steps: int | None = None) -> Experiment:
+    """An experiment of a user-chosen grid (``--controllers/--envs/--scenarios/--seeds``).
+
+    ``scenarios=None`` runs each env's default scenario; given scenarios apply to the envs
+    that have them (an env with none of them is an error).
+
+    Raises:
+        benchmarks.controllers.UnknownNameError: unknown names.
+    """
+    for c in controllers:
+        check_name("controller", c, list(CONTROLLERS))
+    pairs: list[tuple[str, str]] = []
+    for env in envs:
+        check_name("env", env, list(ENVS))
+        if scenarios is None:
+            pairs.append((env, ENVS[env].default_scenario))
+            continue
+        own = [s for s in scenarios if s in ENVS[env].scenarios]
+        if not own:
+            check_env_scenario(env, scenarios[0])  # raises, listing the env's scenarios
+        pairs.extend((env, s) for s in own)
+    valid = {s for e in ENVS.values() for s in e.scenarios}
+    for s in scenarios or ():
+        check_name("scenario", s, sorted(valid))
+    return Experiment(
+        "custom", "Custom run", "A user-chosen grid of controllers x envs x scenarios x seeds.",
+        episodes(controllers, pairs, seeds, max_steps),
+        ("summary", "trajectories", "paths", "step_times"))
+
+
+# ----------------------------------------------------------------------------- experiments
+def paper_tables(seeds: Sequence[int] = (0, 1, 2)) -> Experiment:
+    """The paper's tables 1 and 2: four models x (episodic, MPC) on cart pole and quadrotor."""
+    envs = [(e, s) for e in ("cartpole", "quadrotor") for s in ("gp", "online")]
+    return Experiment(
+        "paper-tables", "Paper tables 1 and 2 (cart pole, quadrotor)",
+        "Nominal vs offline GP vs online SSGP vs oracle (true model), each planned once "
+        "(episodic, open loop) and as receding-horizon MPC, on the cart-pole swing-up and the "
+        "quadrotor, scenarios `gp` (table 1) and `online` (table 2). Cost is the episode's "
+        "cumulative task cost (minus the return).",
+        episodes(MPC_RECEDING + MPC_EPISODIC, envs, seeds),
+        ("paper_tables", "summary", "trajectories"))
+
+
+def dubins(seeds: Sequence[int] = tuple(range(50))) -> Experiment:
+    """Dubins obstacle avoidance over 50 draws of the nominal model."""
+    return Experiment(
+        "dubins", "Dubins vehicle around an obstacle (50 episodes)",
+        "Each seed's reset draws the nominal actuator losses b1, b2 ~ N(0.3, 0.3) (clipped "
+        "at 0.9; true b = 0.3). Nominal MPC vs SSGP-MPC vs oracle MPC; constraint violations "
+        "are steps in contact with the obstacle (which end the episode).",
+        episodes(("nominal-mpc", "ssgp-mpc", "oracle-mpc"), [("dubins", "paper")], seeds),
+        ("summary", "paths"))
+
+
+SAMPLE_EFFICIENCY_ENVS = (("cartpole", "online"), ("quadrotor", "online"), ("dubins", "paper"))
+"""The (env, scenario) pairs the shipped RL models were trained on."""
+
+
+def sample_efficiency(seeds: Sequence[int] = (0, 1, 2, 3, 4)) -> Experiment:
+    """Success and return against env steps used: MPCs vs RL learning curves."""
+    return Experiment(
+        "sample-efficiency", "Sample efficiency: MPC vs RL",
+        "Success rate and return against the env steps of data each controller used: the MPC "
+        "variants are points (initial data + the episode's steps for the learning MPCs, the "
+        "episode's steps for nominal/oracle), SAC/PPO are their training-time learning curves "
+        "(`learning_curve.csv` shipped with each model: deterministic evaluations on reset "
+        "seeds 1000..1009) and the final policies evaluated here on the same seeds as the MPCs.",
+        episodes((*MPC_RECEDING, "sac", "ppo"), SAMPLE_EFFICIENCY_ENVS, seeds),
+        ("sample_efficiency", "summary"))
+
+
+def compute(act_samples: Sequence[int] = (200, 1000, 5000),
+            ranks: Sequence[int] = (25, 50, 100, 200)) -> Experiment:
+    """Per-step compute of every controller; SSGP-MPC scaling with samples and rank."""
+    pairs = [(e, ENVS[e].default_scenario) for e in ENVS]
+    specs = episodes((*MPC_RECEDING, *MPC_EPISODIC, "sac", "ppo"), pairs, (0,))
+    specs += tuple(TrialSpec("ssgp-act-scaling", "cartpole", "online", "ssgp-mpc", 0, param=n)
+                   for n in act_samples)
+    specs += tuple(TrialSpec("ssgp-update-time", "cartpole", "online", "ssgp", 0, param=r)
+                   for r in ranks)
+    return Experiment(
+        "compute", "Compute: per-step time",
+        "Wall-clock time of each `act` call (one core, `OMP_NUM_THREADS=1`, seed 0, each env's "
+        "default scenario); episodic controllers solve once at the first step and then replay. "
+        "SSGP-MPC step time after learning 200 / 1,000 / 5,000 samples (extra samples fed with "
+        "`IncrementalSSGP.update`), and the single-sample update time against the rank r.",
+        specs, ("step_times", "scaling", "update_time"))
+
+
+def peers(seeds: Sequence[int] = (0, 1, 2)) -> Experiment:
+    """This project's pseudospectral MPC vs do-mpc on the same cart-pole swing-up."""
+    return Experiment(
+        "peers", "Peers: pseudospectral MPC vs do-mpc",
+        "The same cart-pole swing-up problem (scenario `gp`, nominal model, horizon 1.5 s, same "
+        "cost, bounds and IPOPT options) solved by this project's Gauss pseudospectral MPC and "
+        "by do-mpc (orthogonal collocation), back to back in one process per seed. Target: at "
+        "most 0.5x do-mpc's median step time at equal or better closed-loop cost.",
+        tuple(TrialSpec("peers", "cartpole", "gp", "ps-vs-do-mpc", s) for s in seeds),
+        ("peers",))
+
+
+def mpc_acceptance(seeds: Sequence[int] = tuple(range(10)),
+                   dubins_seeds: Sequence[int] = tuple(range(50))) -> Experiment:
+    """The MPC issue's acceptance runs."""
+    specs = episodes(("nominal-mpc", "oracle-mpc", "ssgp-mpc"), [("cartpole", "online")], seeds)
+    specs += episodes(("nominal-mpc", "ssgp-mpc"), [("quadrotor", "gp"), ("quadrotor", "online")],
+                      seeds)
+    specs += episodes(("nominal-mpc", "ssgp-mpc"), [("dubins", "paper")], dubins_seeds)
+    return Experiment(
+        "mpc-acceptance", "MPC acceptance",
+        "Cart pole `online`: nominal / oracle / SSGP-MPC on 10 seeds; quadrotor `gp` and "
+        "`online`: nominal / SSGP-MPC on 10 seeds (final position error); Dubins: 50 episodes "
+        "nominal vs SSGP-MPC (violations, goals reached); median act times.",
+        specs, ("acceptance", "summary", "step_times"))
+
+
+def quick() -> Experiment:
+    """A couple of minutes: the main controllers on every env, one or two seeds."""
+    specs = episodes(("nominal-mpc", "gp-mpc", "ssgp-mpc", "oracle-mpc", "sac"),
+                     [("cartpole", "online")], (0, 1))
+    specs += episodes(("nominal-mpc", "ssgp-mpc", "oracle-mpc", "ppo"), [("quadrotor", "online")],
+                      (0,))
+    specs += episodes(("nominal-mpc", "ssgp-mpc", "oracle-mpc", "ppo"), [("dubins", "paper")],
+                      (0, 1))
+    specs += tuple(TrialSpec("ssgp-update-time", "cartpole", "online", "ssgp", 0, param=r)
+                   for r in (25, 50, 100))
+    specs += (TrialSpec("peers", "cartpole", "gp", "ps-vs-do-mpc", 0),)
+    return Experiment(
+        "quick", "Quick comparison",
+        "Nominal, offline-GP, SSGP and oracle MPC and the shipped SAC policy on the cart pole "
+        "(`online`, seeds 0-1); nominal, SSGP and oracle MPC and PPO on the quadrotor "
+        "(`online`, seed 0) and the Dubins vehicle (seeds 0-1); SSGP update time for r = 25, "
+        "50, 100; one episode each of this project's MPC and do-mpc (if installed).",
+        specs, ("summary", "trajectories", "paths", "step_times", "sample_efficiency",
+                "update_time", "peers"))
+
+
+PRESETS: dict[str, Preset] = {
+    "quick": Preset("quick", "a couple of minutes: the main controllers on every env",
+                    (quick(),)),
+    "paper-tables": Preset("paper-tables", "the paper's tables 1 and 2, seeds 0-2",
+                           (paper_tables(),)),
+    "dubins": Preset("dubins", "Dubins obstacle avoidance, 50 episodes", (dubins(),)),
+    "sample-efficiency": Preset("sample-efficiency", "MPC data use vs RL learning curves",
+                                (sample_efficiency(),)),
+    "compute": Preset("compute", "per-step times, SSGP scaling with samples and rank",
+                      (compute(),)),
+    "peers": Preset("peers", "pseudospectral MPC vs do-mpc (needs do-mpc)", (peers(),)),
+    "mpc-acceptance": Preset("mpc-acceptance", "the MPC issue's acceptance runs",
+                             (mpc_acceptance(),)),
+    "full": Preset("full", "everything: all experiments above except quick",
+                   (paper_tables(), dubins(), sample_efficiency(), compute(), peers(),
+                    mpc_acceptance())),
+}
+"""Presets by name."""
+
+
+def get_preset(name: str) -> Preset:
+    """The preset ``name``; unknown names raise with the list of valid ones."""
+    check_name("preset", name, list(PRESETS))
+    return PRESETS[name]

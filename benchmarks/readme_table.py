@@ -1,0 +1,90 @@
+"""Print the README's results table from a report directory's ``summary.csv``.
+
+Usage::
+
+    python -m benchmarks.readme_table benchmarks/results/quick
+    python -m benchmarks.readme_table benchmarks/results/full --experiment sample-efficiency
+
+The table is generated from the CSV the report was built from, never typed in.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+COLUMNS = (
+    ("env", "env"), ("scenario", "scenario"), ("label", "controller"),
+    ("episodes", "episodes"), ("success_rate", "success rate"), ("cost_mean", "mean cost"),
+    ("final_distance_mean", "final distance"), ("episodes_with_violation", "episodes w/ violation"),
+    ("data_steps_mean", "env steps of data"), ("act_median_ms", "act median (ms)"),
+)
+DIGITS = {"success_rate": 2, "cost_mean": 1, "final_distance_mean": 3, "data_steps_mean": 0,
+          "act_median_ms": 1}
+
+
+def _cell(key: str, value: str) -> str:
+    if key not in DIGITS:
+        return value
+    try:
+        x = float(value)
+    except ValueError:
+        return value or "-"
+    return "-" if not math.isfinite(x) else f"{x:.{DIGITS[key]}f}"
+
+
+def readme_table(report_dir: Path, experiment: str | None = None) -> str:
+    """The Markdown table of one experiment of ``report_dir/summary.csv``.
+
+    Args:
+        report_dir: a results directory written by ``python -m benchmarks``.
+        experiment: experiment name (default: the first one in the CSV).
+
+    Raises:
+        FileNotFoundError: no ``summary.csv`` in ``report_dir``.
+        ValueError: unknown experiment (the message lists the ones present).
+    """
+    path = Path(report_dir) / "summary.csv"
+    if not path.is_file():
+        raise FileNotFoundError(f"no summary.csv in {report_dir}: run python -m benchmarks first")
+    with open(path, newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    experiments = list(dict.fromkeys(r["experiment"] for r in rows))
+    if not experiments:
+        raise ValueError(f"{path} has no rows")
+    experiment = experiment or experiments[0]
+    if experiment not in experiments:
+        raise ValueError(f"unknown experiment {experiment!r}; present: {', '.join(experiments)}")
+    lines = ["| " + " | ".join(h for _, h in COLUMNS) + " |",
+             "|" + "|".join("---" if k in ("env", "scenario", "label") else "---:"
+                            for k, _ in COLUMNS) + "|"]
+    for r in rows:
+        if r["experiment"] != experiment:
+            continue
+        cells = [_cell(k, r[k]) for k, _ in COLUMNS]
+        if r["status"] == "not available":
+            cells = [*cells[:3], "not available", *["-"] * (len(COLUMNS) - 4)]
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """CLI entry point; prints the table to stdout."""
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("report_dir", type=Path, help="results directory (with summary.csv)")
+    p.add_argument("--experiment", help="experiment name (default: the first in the CSV)")
+    args = p.parse_args(argv)
+    try:
+        print(readme_table(args.report_dir, args.experiment))
+    except (FileNotFoundError, ValueError) as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,749 @@
+"""Tables, plots and the Markdown report of a results directory.
+
+:func:`write_report` reads the trial files of a preset (``<out>/runs/*.npz``, see
+:mod:`benchmarks.runner`) and writes next to them:
+
+- ``metrics.csv``: one row per episode trial (the tidy table of metrics);
+- ``summary.csv``: per experiment, env, scenario and controller: success rate, cost, errors,
+  violations, data used, step times;
+- ``compute.csv`` and ``peers.csv`` when the preset has those measurements;
+- PNG figures, and ``report.md`` embedding them with the command and package versions.
+
+Every number in the report comes from the trial files; nothing is typed in.
+"""
+
+from __future__ import annotations
+
+import csv
+import datetime as _dt
+import importlib.metadata
+import math
+import os
+import platform
+import subprocess
+from collections import defaultdict
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+
+from benchmarks.controllers import CONTROLLERS, ENVS, MODELS_DIR
+from benchmarks.presets import MPC_BASES, Experiment, Preset
+from benchmarks.runner import load_arrays, load_record, trial_path
+from benchmarks.trial import STATUS_OK, STATUS_UNAVAILABLE, TrialSpec
+
+METRIC_COLUMNS = (
+    "key", "env", "scenario", "controller", "family", "mode", "seed", "status", "success",
+    "time_to_success_s", "cost", "final_distance", "final_position_error", "violations",
+    "termination", "steps", "data_steps", "act_median_ms", "act_p95_ms", "act_max_ms",
+    "solver_failures", "fallbacks", "solves", "build_s", "episode_s", "max_steps", "message",
+)
+SUMMARY_COLUMNS = (
+    "experiment", "env", "scenario", "controller", "label", "status", "episodes", "success_rate",
+    "cost_mean", "cost_std", "cost_median", "time_to_success_mean_s", "final_distance_mean",
+    "final_position_error_mean", "final_position_error_max", "violations_total",
+    "episodes_with_violation", "data_steps_mean", "act_median_ms", "act_p95_ms", "act_max_ms",
+    "solver_failures", "fallbacks",
+)
+PACKAGES = ("gp-pseudospectral-mpc", "numpy", "scipy", "casadi", "gymnasium", "matplotlib",
+            "torch", "stable-baselines3", "do-mpc", "dask", "distributed", "tqdm")
+
+
+# ----------------------------------------------------------------------------- loading
+@dataclass
+class Trial:
+    """A trial's spec, record (or None if never run) and lazily loaded arrays."""
+
+    spec: TrialSpec
+    path: Path
+    record: dict[str, Any] | None
+    _arrays: dict[str, np.ndarray] | None = field(default=None, repr=False)
+
+    @property
+    def status(self) -> str:
+        """``ok``, ``error``, ``unavailable`` or ``missing`` (never run)."""
+        return "missing" if self.record is None else str(self.record["status"])
+
+    @property
+    def ok(self) -> bool:
+        """The trial finished successfully."""
+        return self.status == STATUS_OK
+
+    @property
+    def metrics(self) -> dict[str, Any]:
+        """The trial's metrics (empty unless ok)."""
+        return self.record.get("metrics", {}) if self.record else {}
+
+    @property
+    def arrays(self) -> dict[str, np.ndarray]:
+        """The trial's arrays (trajectory, diagnostics), loaded on first use."""
+        if self._arrays is None:
+            self._arrays = load_arrays(self.path) if self.ok else {}
+        return self._arrays
+
+
+def load_trials(out_dir: Path, specs: Iterable[TrialSpec]) -> dict[TrialSpec, Trial]:
+    """The trials of ``specs`` as stored in ``out_dir`` (missing ones with ``record=None``)."""
+    out = {}
+    for spec in specs:
+        path = trial_path(out_dir, spec)
+        out[spec] = Trial(spec, path, load_record(path))
+    return out
+
+
+# ----------------------------------------------------------------------------- helpers
+def _label(controller: str) -> str:
+    recipe = CONTROLLERS.get(controller)
+    return recipe.label if recipe else controller
+
+
+_BASE_COLORS = {"nominal": "C0", "gp": "C1", "ssgp": "C2", "oracle": "C3", "sac": "C4",
+                "ppo": "C5"}
+
+
+def _color(controller: str) -> str:
+    """One color per model variant (receding and episodic share it)."""
+    recipe = CONTROLLERS.get(controller)
+    return _BASE_COLORS.get(recipe.base if recipe else controller, "C7")
+
+
+def _fmt(value: Any, digits: int = 2) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, bool | np.bool_):
+        return "yes" if value else "no"
+    if isinstance(value, int | np.integer):
+        return str(int(value))
+    if isinstance(value, float | np.floating):
+        if not math.isfinite(value):
+            return "n/a"
+        if abs(value) >= 1000:
+            return f"{value:.0f}"
+        return f"{value:.{digits}f}"
+    return str(value)
+
+
+def markdown_table(header: Sequence[str], rows: Iterable[Sequence[Any]],
+                   align: Sequence[str] | None = None) -> list[str]:
+    """Lines of a Markdown table; numbers formatted by :func:`_fmt`."""
+    align = align or ["---"] * len(header)
+    lines = ["| " + " | ".join(header) + " |", "|" + "|".join(align) + "|"]
+    for row in rows:
+        lines.append("| " + " | ".join(_fmt(v) for v in row) + " |")
+    return lines
+
+
+def _mean(values: Sequence[float]) -> float:
+    arr = np.asarray([v for v in values if v is not None], float)
+    arr = arr[np.isfinite(arr)]
+    return float(arr.mean()) if arr.size else float("nan")
+
+
+def _write_csv(path: Path, columns: Sequence[str], rows: Iterable[dict[str, Any]]) -> None:
+    with open(path, "w", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=list(columns), extrasaction="ignore")
+        writer.writeheader()
+        for row in rows:
+            writer.writerow({k: row.get(k, "") for k in columns})
+
+
+def _env_title(env: str, scenario: str) -> str:
+    return f"{ENVS[env].env_id} ({scenario})"
+
+
+def _save(fig: Any, out_dir: Path, name: str) -> str:
+    fig.savefig(out_dir / name, dpi=90, bbox_inches="tight")
+    plt.close(fig)
+    return name
+
+
+# ----------------------------------------------------------------------------- tables
+def metric_rows(trials: Iterable[Trial]) -> list[dict[str, Any]]:
+    """One row per episode trial (tidy metrics; failed/unavailable trials with status only)."""
+    rows = []
+    for t in trials:
+        if t.spec.kind != "episode" or t.record is None:
+            continue
+        recipe = CONTROLLERS[t.spec.controller]
+        row: dict[str, Any] = {
+            "key": t.spec.key, "env": t.spec.env, "scenario": t.spec.scenario,
+            "controller": t.spec.controller, "family": recipe.family,
+            "mode": recipe.mode if recipe.family == "mpc" else "policy", "seed": t.spec.seed,
+            "status": "not available" if t.status == STATUS_UNAVAILABLE else t.status,
+            "max_steps": t.spec.max_steps if t.spec.max_steps is not None else "",
+            "message": "" if t.ok else t.record.get("message", "").strip().splitlines()[-1:],
+        }
+        if isinstance(row["message"], list):
+            row["message"] = row["message"][0] if row["message"] else ""
+        row.update({k: v for k, v in t.metrics.items() if k in METRIC_COLUMNS})
+        rows.append(row)
+    return rows
+
+
+def summarize(experiment: str, trials: Sequence[Trial]) -> list[dict[str, Any]]:
+    """Per (env, scenario, controller) aggregates over the episode trials of an experiment."""
+    groups: dict[tuple[str, str, str], list[Trial]] = defaultdict(list)
+    for t in trials:
+        if t.spec.kind == "episode":
+            groups[(t.spec.env, t.spec.scenario, t.spec.controller)].append(t)
+    rows = []
+    for (env, scenario, controller), group in groups.items():
+        ok = [t for t in group if t.ok]
+        statuses = {t.status for t in group}
+        if ok:
+            status = "ok" if len(ok) == len(group) else f"{len(ok)}/{len(group)} ok"
+        elif STATUS_UNAVAILABLE in statuses:
+            status = "not available"
+        else:
+            status = "/".join(sorted(statuses))
+        m = [t.metrics for t in ok]
+        costs = np.array([x["cost"] for x in m], float)
+        act_all = (np.concatenate([t.arrays["act_time"] for t in ok]) if ok
+                   else np.zeros(0))
+        rows.append({
+            "experiment": experiment, "env": env, "scenario": scenario,
+            "controller": controller, "label": _label(controller), "status": status,
+            "episodes": len(ok),
+            "success_rate": _mean([float(x["success"]) for x in m]),
+            "cost_mean": _mean(costs), "cost_std": float(costs.std()) if costs.size else math.nan,
+            "cost_median": float(np.median(costs)) if costs.size else math.nan,
+            "time_to_success_mean_s": _mean([x["time_to_success_s"] for x in m]),
+            "final_distance_mean": _mean([x["final_distance"] for x in m]),
+            "final_position_error_mean": _mean([x["final_position_error"] for x in m]),
+            "final_position_error_max": (max(x["final_position_error"] for x in m)
+                                         if m and env != "cartpole" else math.nan),
+            "violations_total": int(sum(x["violations"] for x in m)),
+            "episodes_with_violation": int(sum(x["violations"] > 0 for x in m)),
+            "data_steps_mean": _mean([x["data_steps"] for x in m]),
+            "act_median_ms": 1e3 * float(np.median(act_all)) if act_all.size else math.nan,
+            "act_p95_ms": 1e3 * float(np.percentile(act_all, 95)) if act_all.size else math.nan,
+            "act_max_ms": 1e3 * float(act_all.max()) if act_all.size else math.nan,
+            "solver_failures": (int(sum(x["solver_failures"] for x in m))
+                                if m and m[0]["family"] == "mpc" else math.nan),
+            "fallbacks": (int(sum(x["fallbacks"] for x in m))
+                          if m and m[0]["family"] == "mpc" else math.nan),
+        })
+    return rows
+
+
+# ----------------------------------------------------------------------------- sections
+@dataclass
+class Context:
+    """What a report section sees."""
+
+    out_dir: Path
+    trials: dict[TrialSpec, Trial]
+    summaries: dict[str, list[dict[str, Any]]]
+    compute_rows: list[dict[str, Any]]
+    peer_rows: list[dict[str, Any]]
+
+    def of(self, experiment: Experiment) -> list[Trial]:
+        """The experiment's trials."""
+        return [self.trials[s] for s in experiment.specs]
+
+
+SectionFn = Callable[[Context, Experiment], list[str]]
+
+
+def section_summary(ctx: Context, exp: Experiment) -> list[str]:
+    """Per-controller table of the experiment's episodes."""
+    rows = ctx.summaries[exp.name]
+    header = ["env", "controller", "episodes", "success", "cost mean (std)",
+              "time to success (s)", "final dist.", "final pos. err. (m)", "violations",
+              "data steps", "act median / p95 / max (ms)", "solver fails / fallbacks", "status"]
+    body = []
+    for r in rows:
+        body.append([
+            f"{r['env']} `{r['scenario']}`", r["label"], r["episodes"], r["success_rate"],
+            f"{_fmt(r['cost_mean'])} ({_fmt(r['cost_std'])})", r["time_to_success_mean_s"],
+            r["final_distance_mean"], r["final_position_error_mean"],
+            f"{r['violations_total']} in {r['episodes_with_violation']} ep.",
+            _fmt(r["data_steps_mean"], 0),
+            f"{_fmt(r['act_median_ms'], 1)} / {_fmt(r['act_p95_ms'], 1)} / "
+            f"{_fmt(r['act_max_ms'], 0)}",
+            f"{_fmt(r['solver_failures'])} / {_fmt(r['fallbacks'])}", r["status"]])
+    lines = ["", "Per controller (means over episodes; *success*: `info['success']` at the "
+             "episode end; *final dist.*: `info['distance_to_goal']`; *violations*: steps with "
+             "`info['constraint_violation']`; *data steps*: env steps of data used):", ""]
+    lines += markdown_table(header, body, ["---", "---"] + ["---:"] * 10 + ["---"])
+    unavailable = [t for t in ctx.of(exp) if t.status == STATUS_UNAVAILABLE]
+    reasons = sorted({f"{t.spec.controller} on {t.spec.env} `{t.spec.scenario}`: "
+                      f"{t.record['message']}" for t in unavailable if t.record})
+    if reasons:
+        lines += ["", "Not available (recorded, not run):", ""] + [f"- {r}" for r in reasons]
+    errors = [t for t in ctx.of(exp) if t.status == "error"]
+    if errors:
+        lines += ["", f"{len(errors)} trial(s) failed with an exception (see `metrics.csv`):", ""]
+        lines += [f"- `{t.spec.key}`: {t.record['message'].strip().splitlines()[-1]}"
+                  for t in errors[:10] if t.record]
+    missing = [t for t in ctx.of(exp) if t.status == "missing"]
+    if missing:
+        lines += ["", f"**{len(missing)} of {len(exp.specs)} trials have not run yet** "
+                  "(rerun the command to complete them)."]
+    return lines
+
+
+def section_paper_tables(ctx: Context, exp: Experiment) -> list[str]:
+    """The paper's tables: cost and success per model, episodic vs MPC, per scenario."""
+    by = {(r["env"], r["scenario"], r["controller"]): r for r in ctx.summaries[exp.name]}
+    lines: list[str] = []
+    for number, scenario in ((1, "gp"), (2, "online")):
+        lines += ["", f"**Table {number}** (scenario `{scenario}`): cumulative cost, mean over "
+                  "seeds (success rate)", ""]
+        body = []
+        for env in ("cartpole", "quadrotor"):
+            for base in MPC_BASES:
+                cells = []
+                for mode in ("episodic", "mpc"):
+                    r = by.get((env, scenario, f"{base}-{mode}"))
+                    if r is None or not r["episodes"]:
+                        cells.append("not run" if r is None else r["status"])
+                    else:
+                        cells.append(f"{_fmt(r['cost_mean'])} ({_fmt(r['success_rate'])})")
+                label = CONTROLLERS[f"{base}-mpc"].label.replace(" MPC", "")
+                body.append([env, label, *cells])
+        lines += markdown_table(["env", "model", "episodic", "MPC"], body,
+                                ["---", "---", "---:", "---:"])
+    return lines
+
+
+def _first_ok(trials: Sequence[Trial]) -> Trial | None:
+    ok = sorted((t for t in trials if t.ok), key=lambda t: t.spec.seed)
+    return ok[0] if ok else None
+
+
+def section_trajectories(ctx: Context, exp: Experiment) -> list[str]:
+    """States and controls vs time, one line per controller, lowest seed; one figure per env."""
+    by_env: dict[tuple[str, str], dict[str, list[Trial]]] = defaultdict(lambda: defaultdict(list))
+    for t in ctx.of(exp):
+        if t.spec.kind == "episode":
+            by_env[(t.spec.env, t.spec.scenario)][t.spec.controller].append(t)
+    lines: list[str] = []
+    for (env, scenario), controllers in by_env.items():
+        chosen = {c: _first_ok(ts) for c, ts in controllers.items()}
+        chosen = {c: t for c, t in chosen.items() if t is not None}
+        if not chosen:
+            continue
+        import gymnasium as gym
+
+        model = gym.make(ENVS[env].env_id, scenario=scenario).unwrapped.nominal_model
+        names = [*model.state_names, *model.control_names]
+        n, ncols = len(names), 4 if len(names) > 9 else 3
+        nrows = math.ceil(n / ncols)
+        fig, axes = plt.subplots(nrows, ncols, figsize=(4.2 * ncols, 2.6 * nrows), squeeze=False)
+        seed = min(t.spec.seed for t in chosen.values())
+        for c, t in chosen.items():
+            a = t.arrays
+            obs, act = a["obs"], a["action"]
+            t_obs = np.arange(len(obs)) * model.dt
+            recipe = CONTROLLERS[c]
+            style = {"ls": "--" if recipe.family == "mpc" and recipe.mode == "episodic" else "-",
+                     "color": _color(c), "label": _label(c)}
+            for i in range(n):
+                ax = axes.flat[i]
+                if i < model.n_states:
+                    ax.plot(t_obs, obs[:, i], lw=1.2, **style)
+                else:
+                    ax.step(t_obs[:-1], act[:, i - model.n_states], where="post", lw=1.0,
+                            **style)
+        goal = model.task.goal
+        for i, name in enumerate(names):
+            ax = axes.flat[i]
+            ax.set_title(name, fontsize=9)
+            ax.grid(alpha=0.3)
+            if i < model.n_states and model.task.Q[i, i] > 0:
+                ax.axhline(goal[i], color="k", lw=0.6, ls=":")
+            if i >= n - ncols:
+                ax.set_xlabel("time (s)")
+        for ax in list(axes.flat)[n:]:
+            ax.axis("off")
+        axes.flat[0].legend(fontsize=7)
+        fig.suptitle(f"{_env_title(env, scenario)}: states and controls, seed {seed} "
+                     "(dashed: episodic)", fontsize=10)
+        fig.tight_layout()
+        name = _save(fig, ctx.out_dir, f"{exp.name}_trajectories_{env}_{scenario}.png")
+        lines += ["", f"![{env} {scenario} trajectories]({name})"]
+    return lines
+
+
+def section_paths(ctx: Context, exp: Experiment) -> list[str]:
+    """Dubins x-y paths of every episode with the obstacle and goal, one panel per controller."""
+    groups: dict[str, list[Trial]] = defaultdict(list)
+    for t in ctx.of(exp):
+        if t.spec.kind == "episode" and t.spec.env == "dubins" and t.ok:
+            groups[t.spec.controller].append(t)
+    if not groups:
+        return []
+    from gp_envs.dubins_obstacle import BODY_RADIUS, GOAL, OBSTACLE, START
+
+    fig, axes = plt.subplots(1, len(groups), figsize=(4.3 * len(groups), 4.3), squeeze=False)
+    for ax, (c, ts) in zip(axes.flat, groups.items(), strict=True):
+        ax.add_patch(plt.Circle(OBSTACLE.center, OBSTACLE.radius, color="0.6", alpha=0.7))
+        ax.add_patch(plt.Circle(OBSTACLE.center, OBSTACLE.radius + BODY_RADIUS, fill=False,
+                                ls="--", color="0.4", lw=0.8))
+        n_viol = n_goal = 0
+        for t in ts:
+            obs = t.arrays["obs"]
+            bad = t.metrics["violations"] > 0
+            n_viol += bad
+            n_goal += bool(t.metrics["success"])
+            ax.plot(obs[:, 0], obs[:, 1], color="tab:red" if bad else "tab:blue", lw=0.7,
+                    alpha=0.6)
+        ax.plot(*START, "ko", ms=4)
+        ax.plot(*GOAL, "g*", ms=12)
+        ax.set_aspect("equal")
+        ax.set_xlim(-0.5, 7)
+        ax.set_ylim(-3.5, 6.5)
+        ax.grid(alpha=0.3)
+        ax.set_title(f"{_label(c)}: {len(ts)} episodes\n{n_goal} reached the goal, "
+                     f"{n_viol} touched the obstacle", fontsize=9)
+    fig.suptitle("Dubins paths (red: obstacle contact; dashed: obstacle + body radius)",
+                 fontsize=10)
+    fig.tight_layout()
+    name = _save(fig, ctx.out_dir, f"{exp.name}_dubins_paths.png")
+    return ["", f"![Dubins paths]({name})"]
+
+
+def section_step_times(ctx: Context, exp: Experiment) -> list[str]:
+    """Box plot of the per-step ``act`` time of each controller, one panel per env."""
+    groups: dict[str, dict[str, list[np.ndarray]]] = defaultdict(lambda: defaultdict(list))
+    for t in ctx.of(exp):
+        if t.spec.kind == "episode" and t.ok:
+            groups[t.spec.env][t.spec.controller].append(t.arrays["act_time"])
+    if not groups:
+        return []
+    fig, axes = plt.subplots(1, len(groups), figsize=(5.2 * len(groups), 4.2), squeeze=False)
+    rows = []
+    for ax, (env, per) in zip(axes.flat, groups.items(), strict=True):
+        names = list(per)
+        data = [1e3 * np.concatenate(per[c]) for c in names]
+        ax.boxplot(data, whis=(5, 95), showfliers=True, flierprops={"markersize": 2})
+        ax.set_xticks(range(1, len(names) + 1), [_label(c) for c in names], rotation=60,
+                      ha="right", fontsize=8)
+        ax.set_yscale("log")
+        ax.set_ylabel("act() time per step (ms)")
+        ax.set_title(ENVS[env].env_id, fontsize=9)
+        ax.grid(alpha=0.3, axis="y")
+        for c, d in zip(names, data, strict=True):
+            rows.append([env, _label(c), len(d), float(np.median(d)),
+                         float(np.percentile(d, 95)), float(d.max())])
+    fig.suptitle("Per-step compute (whiskers 5-95%)", fontsize=10)
+    fig.tight_layout()
+    name = _save(fig, ctx.out_dir, f"{exp.name}_step_times.png")
+    lines = ["", f"![step times]({name})", ""]
+    lines += markdown_table(["env", "controller", "steps", "median (ms)", "p95 (ms)", "max (ms)"],
+                            rows, ["---", "---", "---:", "---:", "---:", "---:"])
+    return lines
+
+
+def _learning_curve(env: str, algo: str) -> list[dict[str, float]]:
+    path = MODELS_DIR / env / algo / "learning_curve.csv"
+    if not path.is_file():
+        return []
+    with open(path) as fh:
+        return [{k: float(v) for k, v in row.items()} for row in csv.DictReader(fh)]
+
+
+def section_sample_efficiency(ctx: Context, exp: Experiment) -> list[str]:
+    """Success and return against env steps used; one figure per env."""
+    by = defaultdict(list)
+    for r in ctx.summaries[exp.name]:
+        by[(r["env"], r["scenario"])].append(r)
+    lines: list[str] = []
+    for (env, scenario), rows in by.items():
+        fig, (ax_s, ax_r) = plt.subplots(1, 2, figsize=(11, 4))
+        table = []
+        colors = {"sac": _color("sac"), "ppo": _color("ppo")}
+        for algo, color in colors.items():
+            curve = [p for p in _learning_curve(env, algo) if p["timesteps"] > 0]  # log axis
+            rl_row = next((r for r in rows if r["controller"] == algo), None)
+            if curve and rl_row is not None and rl_row["episodes"]:
+                steps = [p["timesteps"] for p in curve]
+                ax_s.plot(steps, [p["success_rate"] for p in curve], color=color, lw=1,
+                          label=f"{algo.upper()} learning curve (training evals)")
+                ax_r.plot(steps, [p["mean_return"] for p in curve], color=color, lw=1,
+                          label=f"{algo.upper()} learning curve (training evals)")
+        for r in rows:
+            if not r["episodes"]:
+                table.append([r["label"], "", "", "", r["status"]])
+                continue
+            style = {"marker": "s" if r["controller"] in colors else "o",
+                     "color": _color(r["controller"])}
+            x = r["data_steps_mean"]
+            ax_s.plot([x], [r["success_rate"]], ls="", ms=8, label=r["label"], **style)
+            ax_r.plot([x], [-r["cost_mean"]], ls="", ms=8, label=r["label"], **style)
+            table.append([r["label"], _fmt(x, 0), r["success_rate"], -r["cost_mean"],
+                          f"{r['episodes']} episodes"])
+        for ax, ylabel in ((ax_s, "success rate"), (ax_r, "return (= minus cost)")):
+            ax.set_xscale("log")
+            ax.set_xlabel("env steps of data used")
+            ax.set_ylabel(ylabel)
+            ax.grid(alpha=0.3)
+        ax_r.set_yscale("symlog", linthresh=10)
+        ax_s.legend(fontsize=7, loc="best")
+        fig.suptitle(f"{_env_title(env, scenario)}: sample efficiency", fontsize=10)
+        fig.tight_layout()
+        name = _save(fig, ctx.out_dir, f"{exp.name}_sample_efficiency_{env}_{scenario}.png")
+        lines += ["", f"![{env} sample efficiency]({name})", ""]
+        lines += markdown_table(["controller", "env steps used", "success rate", "mean return",
+                                 "evaluated"], table, ["---", "---:", "---:", "---:", "---"])
+    return lines
+
+
+def compute_rows(trials: Iterable[Trial]) -> list[dict[str, Any]]:
+    """Rows of ``compute.csv``: the scaling and update-time measurements."""
+    rows = []
+    for t in trials:
+        if t.spec.kind in ("ssgp-act-scaling", "ssgp-update-time") and t.ok:
+            rows.append({"measurement": t.spec.kind, "env": t.spec.env,
+                         "scenario": t.spec.scenario, "seed": t.spec.seed,
+                         "param": t.spec.param, **t.metrics})
+    return rows
+
+
+def section_scaling(ctx: Context, exp: Experiment) -> list[str]:
+    """SSGP-MPC step time against the number of samples learned."""
+    keys = {s.key for s in exp.specs}
+    rows = [r for r in ctx.compute_rows if r["measurement"] == "ssgp-act-scaling"
+            and _row_key(r) in keys]
+    if not rows:
+        return []
+    rows.sort(key=lambda r: r["param"])
+    fig, ax = plt.subplots(figsize=(5, 3.6))
+    for t in (ctx.trials[s] for s in exp.specs if s.kind == "ssgp-act-scaling"):
+        if t.ok:
+            ax.boxplot([1e3 * t.arrays["act_time"]], positions=[t.spec.param],
+                       widths=[0.25 * t.spec.param], whis=(5, 95), showfliers=False)
+    ax.set_xscale("log")
+    ax.set_xticks([r["param"] for r in rows], [str(r["param"]) for r in rows])
+    ax.set_xlabel("samples learned before the episode")
+    ax.set_ylabel("SSGP-MPC act() time (ms)")
+    ax.grid(alpha=0.3)
+    name = _save(fig, ctx.out_dir, f"{exp.name}_ssgp_act_scaling.png")
+    lines = ["", "SSGP-MPC (r = 50) on the cart pole `online`, seed 0, after learning N samples:",
+             "", f"![act time vs samples]({name})", ""]
+    lines += markdown_table(
+        ["samples learned", "act median (ms)", "p95 (ms)", "max (ms)", "batch update (s)",
+         "success", "cost"],
+        [[r["param"], r["act_median_ms"], r["act_p95_ms"], r["act_max_ms"], r["batch_update_s"],
+          r["success"], r["cost"]] for r in rows], ["---:"] * 7)
+    return lines
+
+
+def _row_key(row: dict[str, Any]) -> str:
+    return TrialSpec(row["measurement"], row["env"], row["scenario"],
+                     "ssgp-mpc" if row["measurement"] == "ssgp-act-scaling" else "ssgp",
+                     row["seed"], param=row["param"]).key
+
+
+def section_update_time(ctx: Context, exp: Experiment) -> list[str]:
+    """SSGP single-sample update time against the rank r."""
+    keys = {s.key for s in exp.specs}
+    rows = sorted((r for r in ctx.compute_rows if r["measurement"] == "ssgp-update-time"
+                   and _row_key(r) in keys), key=lambda r: r["param"])
+    if not rows:
+        return []
+    fig, ax = plt.subplots(figsize=(5, 3.6))
+    ax.plot([r["r"] for r in rows], [r["update_median_ms"] for r in rows], "o-", label="median")
+    ax.plot([r["r"] for r in rows], [r["update_p95_ms"] for r in rows], "s--", label="p95")
+    ax.set_xscale("log", base=2)
+    ax.set_yscale("log")
+    ax.set_xlabel("r (frequencies; 2r features per output)")
+    ax.set_ylabel("update time per sample (ms)")
+    ax.legend()
+    ax.grid(alpha=0.3)
+    name = _save(fig, ctx.out_dir, f"{exp.name}_ssgp_update_time.png")
+    lines = ["", f"IncrementalSSGP.update on single samples ({rows[0]['updates']} timed updates "
+             f"after a fit on the initial data; {rows[0]['n_outputs']} outputs, cart pole):", "",
+             f"![update time vs r]({name})", ""]
+    lines += markdown_table(["r", "median (ms)", "p95 (ms)", "max (ms)", "fit (s)"],
+                            [[r["r"], r["update_median_ms"], r["update_p95_ms"],
+                              r["update_max_ms"], r["fit_s"]] for r in rows], ["---:"] * 5)
+    return lines
+
+
+def peer_rows(trials: Iterable[Trial]) -> list[dict[str, Any]]:
+    """Rows of ``peers.csv``: one per seed."""
+    return [{"env": t.spec.env, "scenario": t.spec.scenario, "seed": t.spec.seed, **t.metrics}
+            for t in trials if t.spec.kind == "peers" and t.ok]
+
+
+def section_peers(ctx: Context, exp: Experiment) -> list[str]:
+    """Pseudospectral MPC vs do-mpc: step times, their ratio, closed-loop costs, verdict."""
+    trials = [t for t in ctx.of(exp) if t.spec.kind == "peers"]
+    if not trials:
+        return []
+    rows = [r for r in ctx.peer_rows if any(t.ok and t.spec.seed == r["seed"] and
+                                            t.spec.env == r["env"] for t in trials)]
+    if not rows:
+        reasons = {t.record["message"] for t in trials if t.record and not t.ok}
+        return ["", "No peer comparison available: " + ("; ".join(sorted(reasons)) or
+                                                       "not run yet") + "."]
+    first = rows[0]
+    lines = ["", f"Horizon {first['horizon_s']} s. This project: {first['ps_nodes']} "
+             f"({first['ps_nlp_variables']} NLP variables); do-mpc {first['dompc_version']}: "
+             f"{first['dompc_discretization']} ({first['dompc_nlp_variables']} NLP variables).",
+             ""]
+    body = [[r["seed"], r["ps_act_median_ms"], r["dompc_act_median_ms"], r["time_ratio"],
+             r["ps_solve_median_ms"], r["dompc_solve_median_ms"], r["ps_cost"], r["dompc_cost"],
+             f"{_fmt(r['ps_success'])} / {_fmt(r['dompc_success'])}"] for r in rows]
+    lines += markdown_table(
+        ["seed", "ours act median (ms)", "do-mpc act median (ms)", "ratio", "ours IPOPT (ms)",
+         "do-mpc IPOPT (ms)", "ours cost", "do-mpc cost", "success ours / do-mpc"],
+        body, ["---:"] * 8 + ["---"])
+    ps_all = np.concatenate([t.arrays["ps_act_time"] for t in trials if t.ok])
+    do_all = np.concatenate([t.arrays["dompc_act_time"] for t in trials if t.ok])
+    ratio = float(np.median(ps_all) / np.median(do_all))
+    cost_ok = all(r["ps_cost"] <= r["dompc_cost"] * (1 + 1e-3) + 1e-6 for r in rows)
+    met = ratio <= 0.5 and cost_ok
+    lines += ["", f"Over all {len(ps_all)} steps: median step time ours "
+              f"{1e3 * np.median(ps_all):.2f} ms vs do-mpc {1e3 * np.median(do_all):.2f} ms, "
+              f"ratio **{ratio:.2f}**; closed-loop cost ours "
+              f"{'<=' if cost_ok else 'NOT <='} do-mpc's in every seed.",
+              f"Target (ratio <= 0.5 at equal or better cost): **{'met' if met else 'not met'}**."]
+    return lines
+
+
+def section_acceptance(ctx: Context, exp: Experiment) -> list[str]:
+    """Headline numbers of the MPC issue's acceptance runs."""
+    by = {(r["env"], r["scenario"], r["controller"]): r for r in ctx.summaries[exp.name]}
+    lines = [""]
+
+    def get(env: str, scenario: str, c: str) -> dict[str, Any] | None:
+        r = by.get((env, scenario, c))
+        return r if r and r["episodes"] else None
+
+    for c in ("nominal-mpc", "oracle-mpc", "ssgp-mpc"):
+        r = get("cartpole", "online", c)
+        if r:
+            lines.append(f"- cart pole `online`, {_label(c)}: success "
+                         f"{round(r['success_rate'] * r['episodes'])}/{r['episodes']}, mean "
+                         f"cost {_fmt(r['cost_mean'])}, act median {_fmt(r['act_median_ms'], 1)}"
+                         " ms")
+    for scenario in ("gp", "online"):
+        for c in ("nominal-mpc", "ssgp-mpc"):
+            r = get("quadrotor", scenario, c)
+            if r:
+                lines.append(f"- quadrotor `{scenario}`, {_label(c)}: final position error mean "
+                             f"{_fmt(r['final_position_error_mean'], 4)} m (max "
+                             f"{_fmt(r['final_position_error_max'], 4)} m), success "
+                             f"{round(r['success_rate'] * r['episodes'])}/{r['episodes']}, act "
+                             f"median {_fmt(r['act_median_ms'], 1)} ms")
+    for c in ("nominal-mpc", "ssgp-mpc"):
+        r = get("dubins", "paper", c)
+        if r:
+            lines.append(f"- Dubins, {_label(c)}: goal reached "
+                         f"{round(r['success_rate'] * r['episodes'])}/{r['episodes']}, "
+                         f"episodes touching the obstacle {r['episodes_with_violation']}, act "
+                         f"median {_fmt(r['act_median_ms'], 1)} ms")
+    return lines
+
+
+SECTIONS: dict[str, SectionFn] = {
+    "summary": section_summary,
+    "paper_tables": section_paper_tables,
+    "trajectories": section_trajectories,
+    "paths": section_paths,
+    "step_times": section_step_times,
+    "sample_efficiency": section_sample_efficiency,
+    "scaling": section_scaling,
+    "update_time": section_update_time,
+    "peers": section_peers,
+    "acceptance": section_acceptance,
+}
+"""Report sections by name (used by :class:`benchmarks.presets.Experiment`)."""
+
+
+# ----------------------------------------------------------------------------- report
+def package_versions() -> dict[str, str]:
+    """Installed versions of the packages the results depend on (``"-"`` if absent)."""
+    out = {"python": platform.python_version()}
+    for name in PACKAGES:
+        try:
+            out[name] = importlib.metadata.version(name)
+        except importlib.metadata.PackageNotFoundError:
+            out[name] = "-"
+    return out
+
+
+def _git_commit() -> str:
+    try:
+        res = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
+                             text=True, timeout=10, cwd=Path(__file__).resolve().parent)
+        return res.stdout.strip() or "unknown"
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+
+
+def write_report(out_dir: Path, preset: Preset, command: str,
+                 run_info: dict[str, Any] | None = None) -> Path:
+    """Write CSVs, figures and ``report.md`` for ``preset`` from the trial files in ``out_dir``.
+
+    Args:
+        out_dir: results directory (trial files in ``out_dir/runs``).
+        preset: the preset (its experiments choose the trials and sections).
+        command: the exact command line that produced the run.
+        run_info: facts about the latest invocation (e.g. ``wall_s``, ``ran``, ``skipped``,
+            ``workers``, ``scheduler``).
+
+    Returns:
+        Path of ``report.md``.
+    """
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    trials = load_trials(out_dir, preset.specs)
+    all_trials = list(trials.values())
+    summaries = {e.name: summarize(e.name, [trials[s] for s in e.specs])
+                 for e in preset.experiments}
+    ctx = Context(out_dir, trials, summaries, compute_rows(all_trials), peer_rows(all_trials))
+    _write_csv(out_dir / "metrics.csv", METRIC_COLUMNS, metric_rows(all_trials))
+    _write_csv(out_dir / "summary.csv", SUMMARY_COLUMNS,
+               [r for rows in summaries.values() for r in rows])
+    if ctx.compute_rows:
+        cols = list(dict.fromkeys(k for r in ctx.compute_rows for k in r))
+        _write_csv(out_dir / "compute.csv", cols, ctx.compute_rows)
+    if ctx.peer_rows:
+        cols = list(dict.fromkeys(k for r in ctx.peer_rows for k in r))
+        _write_csv(out_dir / "peers.csv", cols, ctx.peer_rows)
+
+    counts = defaultdict(int)
+    for t in all_trials:
+        counts[t.status] += 1
+    trial_s = sum(float(t.record.get("wall_s", 0.0)) for t in all_trials if t.record)
+    info = dict(run_info or {})
+    lines = [f"# Benchmark report: `{preset.name}`", "",
+             f"{preset.description}. Generated by `benchmarks` from the trial files in `runs/` "
+             "(git-ignored); every number below is computed from them.", "",
+             "```bash", command, "```", ""]
+    status_counts = ", ".join(f"{k}: {v}" for k, v in sorted(counts.items()))
+    lines += [f"- trials: {len(all_trials)} ({status_counts})",
+              f"- summed trial wall time: {trial_s:.0f} s"]
+    if "wall_s" in info:
+        lines.append(f"- last invocation: {info['wall_s']:.0f} s wall clock, ran "
+                     f"{info.get('ran', '?')} trial(s), kept {info.get('skipped', '?')} finished "
+                     f"one(s); workers: {info.get('workers', '?')}, scheduler: "
+                     f"{info.get('scheduler') or 'none (local)'}")
+    lines += [f"- machine: {platform.machine()}, {os.cpu_count()} CPU(s) (shared), "
+              f"OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', 'unset')}, "
+              f"{platform.platform(terse=True)}",
+              f"- git commit: {_git_commit()}; written "
+              f"{_dt.datetime.now(_dt.UTC).strftime('%Y-%m-%d %H:%M UTC')}",
+              "- versions: " + ", ".join(f"{k} {v}" for k, v in package_versions().items()),
+              "", "Tables: `metrics.csv` (one row per episode), `summary.csv` (per experiment and "
+              "controller)" + (", `compute.csv`" if ctx.compute_rows else "")
+              + (", `peers.csv`" if ctx.peer_rows else "") + ". Step times are wall clock on "
+              "a shared machine: compare them within a run, not across machines.", ""]
+    lines += ["## Contents", ""] + [f"- [{e.title}](#{e.name})" for e in preset.experiments]
+    for exp in preset.experiments:
+        lines += ["", f'<a id="{exp.name}"></a>', "", f"## {exp.title}", "", exp.description]
+        for section in exp.sections:
+            lines += SECTIONS[section](ctx, exp)
+    path = out_dir / "report.md"
+    path.write_text("\n".join(lines) + "\n")
+    return path

@@ -1,0 +1,227 @@
+"""One trial: its specification, its execution, and the metrics of one episode.
+
+A trial is the unit the runner schedules, stores (one file each) and resumes. Most trials are
+closed-loop episodes (``kind="episode"``): build a controller (:mod:`benchmarks.controllers`),
+reset the env with the trial's seed, run ``agent.act`` / ``env.step`` / ``agent.observe`` to the
+end, and compute the metrics of :func:`episode_metrics`. Other kinds measure compute
+(:mod:`benchmarks.compute`) or compare with a peer library (:mod:`benchmarks.peers`).
+
+:func:`execute` never raises: a failing trial returns ``status="error"`` with the traceback, an
+unavailable controller ``status="unavailable"`` with the reason; the runner records both.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+import traceback
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+
+from benchmarks.controllers import (
+    CONTROLLERS,
+    N_INITIAL_POINTS,
+    ControllerUnavailableError,
+    build_controller,
+    check_env_scenario,
+    check_name,
+    make_env,
+)
+
+STATUS_OK = "ok"
+STATUS_ERROR = "error"
+STATUS_UNAVAILABLE = "unavailable"
+
+
+@dataclass(frozen=True, order=True)
+class TrialSpec:
+    """What to run; the :attr:`key` names the trial's file.
+
+    Attributes:
+        kind: ``"episode"``, or a measurement of :data:`JOB_KINDS` (``"ssgp-act-scaling"``,
+            ``"ssgp-update-time"``, ``"peers"``).
+        env: benchmark env short name (:data:`benchmarks.controllers.ENVS`).
+        scenario: the env's scenario.
+        controller: controller name (episodes), or the measurement's subject.
+        seed: seeds the env resets, the initial data and anything random in the trial.
+        param: the measurement's parameter (samples learned, SSGP rank r), else None.
+        max_steps: stop the episode after this many steps (smoke runs), None for the full one.
+        n_init: initial transitions collected for the learning recipes.
+    """
+
+    kind: str
+    env: str
+    scenario: str
+    controller: str
+    seed: int
+    param: int | None = None
+    max_steps: int | None = None
+    n_init: int = N_INITIAL_POINTS
+
+    @property
+    def key(self) -> str:
+        """File-name-safe unique name of the trial."""
+        parts = [self.kind, self.env, self.scenario, self.controller, f"s{self.seed}"]
+        if self.param is not None:
+            parts.append(f"p{self.param}")
+        if self.n_init != N_INITIAL_POINTS:
+            parts.append(f"n{self.n_init}")
+        if self.max_steps is not None:
+            parts.append(f"t{self.max_steps}")
+        return "_".join(parts)
+
+    def validate(self) -> None:
+        """Raise :class:`benchmarks.controllers.UnknownNameError` for unknown names."""
+        check_name("trial kind", self.kind, list(JOB_KINDS))
+        check_env_scenario(self.env, self.scenario)
+        if self.kind == "episode":
+            check_name("controller", self.controller, list(CONTROLLERS))
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-dict form (stored in the trial file)."""
+        return asdict(self)
+
+
+def _percentile(x: np.ndarray, q: float) -> float:
+    return float(np.percentile(x, q)) if x.size else float("nan")
+
+
+def run_episode(spec: TrialSpec) -> dict[str, Any]:
+    """Run one closed-loop episode; returns ``{"metrics": ..., "arrays": ...}``.
+
+    Raises:
+        ControllerUnavailableError: the controller cannot run on this env/scenario.
+    """
+    env = make_env(spec.env, spec.scenario)
+    recipe = CONTROLLERS[spec.controller]
+    t_build = time.perf_counter()
+    built = build_controller(spec.controller, env, spec.env, spec.seed, spec.n_init)
+    build_s = time.perf_counter() - t_build
+    agent, obs = built.agent, built.obs
+    model = env.unwrapped.nominal_model
+    goal = np.asarray(model.task.goal, float)
+    observations, actions, rewards, act_times = [np.asarray(obs, float)], [], [], []
+    successes, violations, times = [], [], []
+    info: dict[str, Any] = {}
+    terminated = truncated = False
+    t_episode = time.perf_counter()
+    while True:
+        t0 = time.perf_counter()
+        action = agent.act(obs)
+        act_times.append(time.perf_counter() - t0)
+        next_obs, reward, terminated, truncated, info = env.step(action)
+        agent.observe(obs, action, next_obs)
+        observations.append(np.asarray(next_obs, float))
+        actions.append(np.asarray(action, float))
+        rewards.append(float(reward))
+        successes.append(bool(info["success"]))
+        violations.append(bool(info["constraint_violation"]))
+        times.append(float(info["time"]))
+        obs = next_obs
+        if terminated or truncated:
+            break
+        if spec.max_steps is not None and len(actions) >= spec.max_steps:
+            break
+    episode_s = time.perf_counter() - t_episode
+    steps = len(actions)
+    success_arr = np.array(successes)
+    first = int(np.argmax(success_arr)) if success_arr.any() else -1
+    if terminated:
+        termination = info.get("termination_reason") or "terminated"
+    elif truncated:
+        termination = "time limit"
+    else:
+        termination = "max steps"
+    final = observations[-1]
+    position_error = float("nan")
+    if spec.env in ("quadrotor", "dubins"):
+        k = 3 if spec.env == "quadrotor" else 2
+        position_error = float(np.linalg.norm(final[:k] - goal[:k]))
+    act = np.array(act_times)
+    is_mpc = recipe.family == "mpc"
+    learning = recipe.learner is not None
+    data_steps = built.prior_data_steps + (steps if is_mpc else 0)
+    metrics: dict[str, Any] = {
+        "family": recipe.family,
+        "mode": recipe.mode if is_mpc else "policy",
+        "success": bool(successes[-1]),
+        "time_to_success_s": times[first] if first >= 0 else float("nan"),
+        "cost": -float(np.sum(rewards)),
+        "final_distance": float(info.get("distance_to_goal", np.nan)),
+        "final_position_error": position_error,
+        "violations": int(np.sum(violations)),
+        "termination": termination,
+        "steps": steps,
+        "data_steps": int(data_steps),
+        "initial_data_steps": int(built.prior_data_steps if learning else 0),
+        "act_median_ms": 1e3 * _percentile(act, 50),
+        "act_p95_ms": 1e3 * _percentile(act, 95),
+        "act_max_ms": 1e3 * float(act.max()) if act.size else float("nan"),
+        "solver_failures": int(getattr(agent, "n_failures", 0)) if is_mpc else float("nan"),
+        "fallbacks": int(getattr(agent, "n_fallbacks", 0)) if is_mpc else float("nan"),
+        "solves": int(getattr(agent, "n_solves", 0)) if is_mpc else float("nan"),
+        "build_s": build_s,
+        "episode_s": episode_s,
+        **{f"recipe_{k}": v for k, v in built.info.items()},
+    }
+    arrays: dict[str, np.ndarray] = {
+        "obs": np.array(observations),
+        "action": np.array(actions),
+        "reward": np.array(rewards),
+        "success": success_arr,
+        "constraint_violation": np.array(violations),
+        "time": np.array(times),
+        "act_time": act,
+        "goal": goal,
+    }
+    if is_mpc:
+        for name, value in agent.diagnostics_arrays().items():
+            arrays[f"diag_{name}"] = value
+    env.close()
+    return {"metrics": metrics, "arrays": arrays}
+
+
+def _lazy(module: str, function: str) -> Callable[[TrialSpec], dict[str, Any]]:
+    def run(spec: TrialSpec) -> dict[str, Any]:
+        import importlib
+
+        return getattr(importlib.import_module(module), function)(spec)
+
+    run.__name__ = f"{module}.{function}"
+    return run
+
+
+JOB_KINDS: dict[str, Callable[[TrialSpec], dict[str, Any]]] = {
+    "episode": run_episode,
+    "ssgp-act-scaling": _lazy("benchmarks.compute", "run_act_scaling"),
+    "ssgp-update-time": _lazy("benchmarks.compute", "run_update_time"),
+    "peers": _lazy("benchmarks.peers", "run_peers"),
+}
+"""Trial kinds and the function that runs each."""
+
+
+def execute(spec: TrialSpec) -> dict[str, Any]:
+    """Run a trial in this process; never raises.
+
+    Returns:
+        ``{"spec": dict, "status": "ok"|"error"|"unavailable", "message": str, "metrics": dict,
+        "arrays": dict, "host": str, "wall_s": float}``.
+    """
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    start = time.perf_counter()
+    out: dict[str, Any] = {"spec": spec.to_dict(), "status": STATUS_OK, "message": "",
+                           "metrics": {}, "arrays": {}}
+    try:
+        spec.validate()
+        result = JOB_KINDS[spec.kind](spec)
+        out["metrics"], out["arrays"] = result["metrics"], result["arrays"]
+    except ControllerUnavailableError as err:
+        out.update(status=STATUS_UNAVAILABLE, message=str(err))
+    except Exception:  # recorded: a benchmark run goes on
+        out.update(status=STATUS_ERROR, message=traceback.format_exc(limit=20))
+    out["host"] = os.uname().nodename
+    out["wall_s"] = time.perf_counter() - start
+    return out

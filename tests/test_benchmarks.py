@@ -1,0 +1,156 @@
+"""The benchmark suite: files written, resume, partial files, names, determinism, Dask path."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from benchmarks.cli import build_parser, main, parse_seeds, resolve
+from benchmarks.controllers import UnknownNameError, check_env_scenario
+from benchmarks.presets import PRESETS, get_preset
+from benchmarks.readme_table import readme_table
+from benchmarks.runner import is_finished, load_record, run_trials, save_trial, trial_path
+from benchmarks.trial import TrialSpec, execute
+
+TINY = ["--controllers", "nominal-mpc", "--envs", "cartpole", "--scenarios", "online",
+        "--seeds", "0", "--max-steps", "4", "--workers", "0", "--no-progress"]
+TINY_SPEC = TrialSpec("episode", "cartpole", "online", "nominal-mpc", 0, max_steps=4)
+TIMING = ("act_median_ms", "act_p95_ms", "act_max_ms", "build_s", "episode_s")
+
+
+@pytest.fixture(scope="module")
+def tiny_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("tiny")
+    assert main([*TINY, "--out", str(out)]) == 0
+    return out
+
+
+def test_tiny_run_writes_trajectories_metrics_plots_and_report(tiny_run: Path) -> None:
+    run_file = trial_path(tiny_run, TINY_SPEC)
+    assert run_file.is_file() and run_file.parent.name == "runs"
+    with np.load(run_file) as data:
+        assert data["obs"].shape == (5, 4) and data["action"].shape == (4, 1)
+        assert data["act_time"].shape == (4,) and data["diag_replanned"].shape == (4,)
+    record = load_record(run_file)
+    assert record["status"] == "ok"
+    m = record["metrics"]
+    assert m["steps"] == 4 and m["termination"] == "max steps" and m["data_steps"] == 4
+    assert m["solver_failures"] >= 0 and np.isnan(m["time_to_success_s"])
+    for name in ("metrics.csv", "summary.csv", "report.md", "custom_step_times.png",
+                 "custom_trajectories_cartpole_online.png"):
+        assert (tiny_run / name).is_file(), name
+    report = (tiny_run / "report.md").read_text()
+    assert "python -m benchmarks --controllers nominal-mpc" in report
+    assert "casadi" in report and "custom_step_times.png" in report
+    assert "nominal MPC" in readme_table(tiny_run)
+    with pytest.raises(ValueError, match="present: custom"):
+        readme_table(tiny_run, "dubins")
+
+
+def test_rerun_skips_finished_trials(tiny_run: Path) -> None:
+    path = trial_path(tiny_run, TINY_SPEC)
+    before = path.stat().st_mtime_ns
+    summary = run_trials([TINY_SPEC], tiny_run, workers=0, progress=False)
+    assert summary.skipped == [TINY_SPEC.key] and summary.ran == {}
+    assert path.stat().st_mtime_ns == before
+
+
+def test_partial_trial_file_is_not_finished_and_is_rerun(tiny_run: Path, tmp_path: Path) -> None:
+    out = tmp_path / "partial"
+    target = trial_path(out, TINY_SPEC)
+    target.parent.mkdir(parents=True)
+    data = trial_path(tiny_run, TINY_SPEC).read_bytes()
+    target.write_bytes(data[: len(data) // 2])  # a write killed half-way
+    (target.parent / f".{target.stem}.abc.tmp").write_bytes(data[:10])  # a leftover temp file
+    assert not is_finished(out, TINY_SPEC)
+    summary = run_trials([TINY_SPEC], out, workers=0, progress=False)
+    assert summary.ran == {TINY_SPEC.key: "ok"} and is_finished(out, TINY_SPEC)
+
+
+def test_failed_trial_is_recorded_and_retried(tmp_path: Path) -> None:
+    spec = TrialSpec("episode", "cartpole", "online", "nominal-mpc", 0, max_steps=2)
+    save_trial(trial_path(tmp_path, spec), {"spec": spec.to_dict(), "status": "error",
+                                            "message": "boom", "metrics": {}, "arrays": {}})
+    assert load_record(trial_path(tmp_path, spec))["status"] == "error"
+    assert not is_finished(tmp_path, spec)
+
+
+def test_unknown_names_raise_clear_errors(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(UnknownNameError, match="valid presets: quick"):
+        get_preset("nope")
+    with pytest.raises(UnknownNameError, match="nominal-mpc"):
+        TrialSpec("episode", "cartpole", "online", "lqr", 0).validate()
+    with pytest.raises(UnknownNameError, match="valid envs: cartpole, quadrotor, dubins"):
+        check_env_scenario("pendulum", "online")
+    with pytest.raises(UnknownNameError, match="gp, online"):
+        check_env_scenario("cartpole", "paper")
+    with pytest.raises(UnknownNameError):
+        run_trials([TrialSpec("episode", "dubins", "paper", "mppi", 0)], Path("/nonexistent"))
+    for argv, valid in ((["--preset", "fast"], "full"), (["--controllers", "lqr"], "ssgp-mpc"),
+                        (["--controllers", "sac", "--envs", "moon"], "dubins"),
+                        (["--controllers", "sac", "--scenarios", "x"], "online")):
+        with pytest.raises(SystemExit) as exc:
+            main(argv)
+        assert exc.value.code == 2
+        assert valid in capsys.readouterr().err
+
+
+def test_seed_lists_and_presets_are_listed(capsys: pytest.CaptureFixture[str]) -> None:
+    assert parse_seeds("0-3,7") == [0, 1, 2, 3, 7]
+    preset, out = resolve(build_parser().parse_args(["--quick", "--envs", "dubins"]))
+    assert preset.name == "quick" and out.name == "quick"
+    assert {s.env for s in preset.specs} == {"dubins"}
+    assert main(["--list-presets"]) == 0
+    listing = capsys.readouterr().out
+    assert all(name in listing for name in PRESETS)
+    full = {s.key for s in PRESETS["full"].specs}
+    assert {s.key for s in PRESETS["mpc-acceptance"].specs} <= full
+
+
+def test_metrics_are_deterministic_for_a_tiny_learning_run() -> None:
+    spec = TrialSpec("episode", "dubins", "paper", "ssgp-mpc", 3, max_steps=5, n_init=40)
+    a, b = execute(spec), execute(spec)
+    assert a["status"] == b["status"] == "ok", a["message"]
+    for key, value in a["metrics"].items():
+        if key not in TIMING:
+            assert value == b["metrics"][key] or (value != value and b["metrics"][key] != b[
+                "metrics"][key]), key
+    np.testing.assert_array_equal(a["arrays"]["obs"], b["arrays"]["obs"])
+    assert a["metrics"]["data_steps"] == 45 and a["metrics"]["initial_data_steps"] == 40
+
+
+def test_missing_rl_model_is_recorded_as_not_available(tmp_path: Path) -> None:
+    spec = TrialSpec("episode", "quadrotor", "gp", "sac", 0, max_steps=2)
+    summary = run_trials([spec], tmp_path, workers=0, progress=False)
+    assert summary.ran == {spec.key: "unavailable"}
+    assert "no shipped SAC model" in load_record(trial_path(tmp_path, spec))["message"]
+
+
+def test_local_process_pool_runs_trials(tmp_path: Path) -> None:
+    specs = [TrialSpec("episode", "dubins", "paper", "nominal-mpc", s, max_steps=2)
+             for s in (0, 1)]
+    summary = run_trials(specs, tmp_path, workers=1, progress=False)
+    assert summary.ran == {s.key: "ok" for s in specs}
+
+
+def test_dask_local_cluster_runs_a_tiny_trial(tmp_path: Path, tiny_run: Path) -> None:
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                                  dashboard_address=None) as cluster:
+        summary = run_trials([TINY_SPEC], tmp_path, scheduler=cluster.scheduler_address,
+                             progress=False)
+    assert summary.ran == {TINY_SPEC.key: "ok"}
+    ours, ref = load_record(trial_path(tmp_path, TINY_SPEC)), load_record(
+        trial_path(tiny_run, TINY_SPEC))
+    assert ours["metrics"]["cost"] == ref["metrics"]["cost"]
+    shutil.rmtree(tmp_path / "runs")
+
+
+def test_a_trial_exceeding_the_memory_limit_is_an_error_not_a_crash(tmp_path: Path) -> None:
+    spec = TrialSpec("episode", "cartpole", "online", "nominal-mpc", 0, max_steps=2)
+    summary = run_trials([spec], tmp_path, workers=1, progress=False, max_memory_gb=0.05)
+    assert summary.ran == {spec.key: "error"}
+    assert not is_finished(tmp_path, spec)
