@@ -4,7 +4,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 export OMP_NUM_THREADS ?= 1
 
-.PHONY: bench test lint throughput clean
+.PHONY: bench bench-full test throughput clean
 
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -17,6 +17,9 @@ $(VENV)/.installed: pyproject.toml
 bench: $(VENV)/.installed
 	$(PY) -m benchmarks --preset quick
 	$(PY) -m benchmarks.update_readme quick
+
+bench-full: $(VENV)/.installed  # every experiment (350 trials, ~1 h on 2 cores)
+	$(PY) -m benchmarks --preset full
 
 test: $(VENV)/.installed
 	$(PY) -m ruff check .
