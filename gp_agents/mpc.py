@@ -82,6 +82,13 @@ def online_ssgp(n_frequencies: int = 50, forgetting_factor: float = 0.995,
                            bounds=HyperparameterBounds(length_scale=(1.0, 100.0)))
 
 
+MAX_LEARNED_MODEL_SIZE = 50_000_000
+"""Largest learned model :class:`PseudospectralMPC` builds an NLP for: instructions of the
+learner's CasADi mean at one node x learner inputs x collocation nodes (a proxy for the size of
+the NLP's derivatives). Measured on this project's recipes: the SSGP quadrotor plan over the
+whole episode (2.3e7) builds in ~1 GB; the exact GP on 200 points over the same plan (1.2e8)
+exhausted 24 GB of memory while CasADi generated the constraint Jacobian, expanded or not."""
+
 _PERIOD_QUADRATURE = np.polynomial.legendre.leggauss(5)
 """Gauss-Legendre rule for the period mean of the control (exact to degree 9)."""
 
@@ -341,6 +348,15 @@ class PseudospectralMPC:
 
     def _build(self, theta_size: int) -> None:
         model, residual, learner = self.model, self.residual, self.learner
+        if learner is not None:
+            size = self._learned_model_size(theta_size)
+            if size > MAX_LEARNED_MODEL_SIZE:
+                raise ValueError(
+                    f"the learned model is too large to plan with: {size:.2g} (mean instructions "
+                    f"x {residual.n_inputs} inputs x {self.n_nodes * self.n_intervals} nodes) > "
+                    f"MAX_LEARNED_MODEL_SIZE = {MAX_LEARNED_MODEL_SIZE:.2g}; its derivatives "
+                    "would not fit in memory. Use fewer nodes (n_nodes, n_intervals), "
+                    "fewer training points or an SSGP.")
         k = len(model.param_names)
         f_param = model.casadi_parametric_function()
         task = model.task
@@ -410,6 +426,14 @@ class PseudospectralMPC:
             solver_options=options, jit=self.jit)
         self._theta_size = theta_size
         self.n_builds += 1
+
+    def _learned_model_size(self, theta_size: int) -> int:
+        """Instructions of the learned mean at one node x learner inputs x collocation nodes."""
+        z = ca.SX.sym("z", self.residual.n_inputs)
+        theta = ca.SX.sym("theta", theta_size)
+        ops = ca.Function("learned_mean", [z, theta],
+                          [self.learner.casadi_mean(z, theta)]).n_instructions()
+        return int(ops) * self.residual.n_inputs * self.n_nodes * self.n_intervals
 
     def _sym_uncertainty(self, x: Any, u: Any, theta: Any, d: Any) -> Any:
         """One-step position std in the direction ``d`` (paper: Sigma_x1 = Sigma_xdot dt^2)."""

@@ -118,6 +118,28 @@ def test_bad_settings_raise():
         PseudospectralMPC.from_env(gym.make("CartPole-v1"))
 
 
+def test_a_learned_model_too_large_to_plan_with_is_a_clear_error(monkeypatch):
+    """An exact GP over many nodes once exhausted 24 GB inside CasADi; now it is a ValueError."""
+    import gp_agents.mpc as mpc_module
+    from gp_agents.learners import ExactGP
+
+    env = gym.make(CART)
+    data = collect_initial_data(env, 40, seed=0)
+    small = PseudospectralMPC.from_env(env, ExactGP(), n_intervals=1).pretrain(data)
+    obs, _ = env.reset(seed=0)
+    # the size proxy grows linearly with the collocation nodes and the GP's training points
+    size = small._learned_model_size(small._learner_theta().size)
+    large = PseudospectralMPC.from_env(env, ExactGP(), n_intervals=3).pretrain(data)
+    assert large._learned_model_size(large._learner_theta().size) == 3 * size
+    more = PseudospectralMPC.from_env(env, ExactGP(), n_intervals=1).pretrain(
+        collect_initial_data(env, 80, seed=0))
+    assert 1.8 * size < more._learned_model_size(more._learner_theta().size) < 2.2 * size
+    monkeypatch.setattr(mpc_module, "MAX_LEARNED_MODEL_SIZE", 2 * size)
+    assert small.act(obs) in env.action_space
+    with pytest.raises(ValueError, match="too large to plan with"):
+        large.act(obs)
+
+
 def test_solver_is_built_once_and_learning_updates_parameters_only():
     env = gym.make(CART)
     agent = PseudospectralMPC.from_env(env, IncrementalSSGP(20, forgetting_factor=0.99),
