@@ -19,7 +19,8 @@ bench: $(VENV)/.installed
 	$(PY) -m benchmarks.update_readme quick
 
 bench-full: $(VENV)/.installed  # every experiment (350 trials, ~1 h on 2 cores)
-	$(PY) -m benchmarks --preset full
+	$(PY) -m benchmarks --preset full --workers 2
+	$(PY) -m benchmarks.update_readme full full/dubins full/mpc-acceptance
 
 test: $(VENV)/.installed
 	$(PY) -m ruff check .

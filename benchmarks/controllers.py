@@ -229,7 +229,8 @@ def _build_rl(recipe: ControllerRecipe, env: gym.Env, env_name: str, seed: int
               ) -> BuiltController:
     path = rl_model_dir(env_name, str(recipe.algo))
     if not (path / "metadata.json").is_file() or not (path / "model.zip").is_file():
-        raise ControllerUnavailableError(f"no shipped {recipe.label} model in {path}")
+        raise ControllerUnavailableError(
+            f"no shipped {recipe.label} model in {path.relative_to(MODELS_DIR.parent.parent)}")
     try:
         import torch
 

@@ -1,6 +1,6 @@
 """Where an MPC step's time goes: IPOPT iterations and time in each NLP function.
 
-Run: ``OMP_NUM_THREADS=1 python -m benchmarks.profile_mpc`` (about 3 minutes). For every env
+Run: ``OMP_NUM_THREADS=1 python -m benchmarks.profile_mpc`` (under a minute). For every env
 (default scenario, seed 0) it runs the nominal, oracle and SSGP MPC recipes of the benchmark
 suite (:mod:`benchmarks.controllers`) for ``--steps`` closed-loop steps and records, per solve,
 CasADi's statistics of the IPOPT call: iterations and the wall time spent evaluating the

@@ -32,6 +32,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.ticker import NullFormatter
 
 from benchmarks.controllers import CONTROLLERS, ENVS, MODELS_DIR
 from benchmarks.presets import MPC_BASES, Experiment, Preset
@@ -522,6 +523,7 @@ def section_scaling(ctx: Context, exp: Experiment) -> list[str]:
                        widths=[0.25 * t.spec.param], whis=(5, 95), showfliers=False)
     ax.set_xscale("log")
     ax.set_xticks([r["param"] for r in rows], [str(r["param"]) for r in rows])
+    ax.xaxis.set_minor_formatter(NullFormatter())
     ax.set_xlabel("samples learned before the episode")
     ax.set_ylabel("SSGP-MPC act() time (ms)")
     ax.grid(alpha=0.3)
@@ -681,6 +683,14 @@ def _git_commit() -> str:
         return "unknown"
 
 
+def _code_versions(trials: Iterable[Any]) -> str:
+    counts: dict[str, int] = defaultdict(int)
+    for t in trials:
+        if t.record is not None:
+            counts[str(t.record.get("code_version", "not recorded"))] += 1
+    return ", ".join(f"{v} ({n})" for v, n in sorted(counts.items()))
+
+
 def write_report(out_dir: Path, preset: Preset, command: str,
                  run_info: dict[str, Any] | None = None) -> Path:
     """Write CSVs, figures and ``report.md`` for ``preset`` from the trial files in ``out_dir``.
@@ -732,7 +742,8 @@ def write_report(out_dir: Path, preset: Preset, command: str,
     lines += [f"- machine: {platform.machine()}, {os.cpu_count()} CPU(s) (shared), "
               f"OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', 'unset')}, "
               f"{platform.platform(terse=True)}",
-              f"- git commit: {_git_commit()}; written "
+              f"- git commit: {_git_commit()}; trials by code version: "
+              f"{_code_versions(all_trials)}; written "
               f"{_dt.datetime.now(_dt.UTC).strftime('%Y-%m-%d %H:%M UTC')}",
               "- versions: " + ", ".join(f"{k} {v}" for k, v in package_versions().items()),
               "", "Tables: `metrics.csv` (one row per episode), `summary.csv` (per experiment and "

@@ -12,11 +12,14 @@ unavailable controller ``status="unavailable"`` with the reason; the runner reco
 
 from __future__ import annotations
 
+import functools
 import os
+import subprocess
 import time
 import traceback
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -203,12 +206,32 @@ JOB_KINDS: dict[str, Callable[[TrialSpec], dict[str, Any]]] = {
 """Trial kinds and the function that runs each."""
 
 
+@functools.cache
+def code_version() -> str:
+    """Short git commit of the code that runs, with ``-dirty`` if tracked files under the
+    packages differ from it; ``"unknown"`` outside a git checkout."""
+    root = Path(__file__).resolve().parent.parent
+
+    def git(*args: str) -> str:
+        res = subprocess.run(["git", *args], capture_output=True, text=True, timeout=10,
+                             cwd=root, check=True)
+        return res.stdout.strip()
+
+    try:
+        commit = git("rev-parse", "--short", "HEAD")
+        dirty = git("status", "--porcelain", "--untracked-files=no", "--",
+                    "gp_envs", "gp_agents", "benchmarks/*.py", "pyproject.toml")
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+    return f"{commit}-dirty" if dirty else commit
+
+
 def execute(spec: TrialSpec) -> dict[str, Any]:
     """Run a trial in this process; never raises.
 
     Returns:
         ``{"spec": dict, "status": "ok"|"error"|"unavailable", "message": str, "metrics": dict,
-        "arrays": dict, "host": str, "wall_s": float}``.
+        "arrays": dict, "host": str, "code_version": str, "wall_s": float}``.
     """
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     start = time.perf_counter()
@@ -223,5 +246,6 @@ def execute(spec: TrialSpec) -> dict[str, Any]:
     except Exception:  # recorded: a benchmark run goes on
         out.update(status=STATUS_ERROR, message=traceback.format_exc(limit=20))
     out["host"] = os.uname().nodename
+    out["code_version"] = code_version()
     out["wall_s"] = time.perf_counter() - start
     return out

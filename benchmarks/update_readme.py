@@ -1,6 +1,8 @@
 """Regenerate the README's results table(s) between ``<!-- results:NAME -->`` markers.
 
 Run: ``python -m benchmarks.update_readme quick`` after ``python -m benchmarks --preset quick``.
+A name ``DIR/EXPERIMENT`` (markers ``<!-- results:full/dubins -->``) takes the table of one
+experiment of ``benchmarks/results/DIR``; a bare ``DIR`` takes its first experiment.
 """
 
 from __future__ import annotations
@@ -16,12 +18,15 @@ ROOT = Path(__file__).resolve().parent.parent
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("presets", nargs="+", help="report directories under benchmarks/results")
+    parser.add_argument("presets", nargs="+", help="report directories under "
+                        "benchmarks/results, optionally DIR/EXPERIMENT")
     args = parser.parse_args()
     readme = ROOT / "README.md"
     text = readme.read_text()
     for name in args.presets:
-        table = readme_table(ROOT / "benchmarks" / "results" / name).strip()
+        directory, _, experiment = name.partition("/")
+        table = readme_table(ROOT / "benchmarks" / "results" / directory,
+                             experiment or None).strip()
         pattern = re.compile(rf"(<!-- results:{re.escape(name)} -->\n).*?(<!-- /results:"
                              rf"{re.escape(name)} -->)", re.S)
         if not pattern.search(text):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import shutil
+import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -39,12 +40,17 @@ def test_tiny_run_writes_trajectories_metrics_plots_and_report(tiny_run: Path) -
     m = record["metrics"]
     assert m["steps"] == 4 and m["termination"] == "max steps" and m["data_steps"] == 4
     assert m["solver_failures"] >= 0 and np.isnan(m["time_to_success_s"])
+    # provenance: the commit of the code that ran the trial
+    head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
+                          text=True, cwd=Path(__file__).resolve().parent).stdout.strip()
+    assert record["code_version"].removesuffix("-dirty") == (head or "unknown")
     for name in ("metrics.csv", "summary.csv", "report.md", "custom_step_times.png",
                  "custom_trajectories_cartpole_online.png"):
         assert (tiny_run / name).is_file(), name
     report = (tiny_run / "report.md").read_text()
     assert "python -m benchmarks --controllers nominal-mpc" in report
     assert "casadi" in report and "custom_step_times.png" in report
+    assert f"trials by code version: {record['code_version']} (1)" in report
     assert "nominal MPC" in readme_table(tiny_run)
     with pytest.raises(ValueError, match="present: custom"):
         readme_table(tiny_run, "dubins")
