@@ -18,7 +18,7 @@ bench: $(VENV)/.installed
 	$(PY) -m benchmarks --preset quick
 	$(PY) -m benchmarks.update_readme quick
 
-bench-full: $(VENV)/.installed  # every experiment (350 trials, ~1 h on 2 cores)
+bench-full: $(VENV)/.installed  # every experiment (350 trials, ~15 min on 2 cores)
 	$(PY) -m benchmarks --preset full --workers 2
 	$(PY) -m benchmarks.update_readme full full/dubins full/mpc-acceptance
 
