@@ -16,6 +16,10 @@ ssgp-mpc           nominal + :func:`gp_agents.online_ssgp` (``IncrementalSSGP(50
 <base>-episodic     the same model, planned once over the whole episode and run open loop
 =================  ======================================================================
 
+Speed variants of ``ssgp-mpc`` (:data:`SPEED_VARIANTS`, preset ``speed-options``):
+``ssgp-mpc-nominal-hessian`` (``hessian="nominal"``) and ``ssgp-mpc-model-inputs``
+(``input_indices="model"``).
+
 RL recipes load the shipped stable-baselines3 policies from ``benchmarks/models/<env>/<algo>/``
 (:class:`gp_agents.rl.RLAgent`); a missing model (or one trained for another scenario) makes the
 controller *unavailable* for that env, which the runner records instead of crashing.
@@ -70,6 +74,8 @@ class ControllerRecipe:
         mode: ``"receding"`` or ``"episodic"``; MPC only.
         learn_online: feed closed-loop transitions to the learner; MPC only.
         algo: ``"sac"`` or ``"ppo"``; RL only.
+        settings: extra keyword settings of :class:`gp_agents.PseudospectralMPC` as
+            ``(name, value)`` pairs (the speed variants of the SSGP-MPC); MPC only.
     """
 
     name: str
@@ -81,11 +87,14 @@ class ControllerRecipe:
     mode: str = "receding"
     learn_online: bool = False
     algo: str | None = None
+    settings: tuple[tuple[str, Any], ...] = ()
 
     @property
     def base(self) -> str:
         """Name of the model variant without the mode (``"ssgp"`` for ``"ssgp-episodic"``)."""
-        return self.name.rsplit("-", 1)[0] if self.family == "mpc" else self.name
+        if self.family != "mpc":
+            return self.name
+        return self.name.split("-mpc")[0] if "-mpc" in self.name else self.name.rsplit("-", 1)[0]
 
     @property
     def uses_initial_data(self) -> bool:
@@ -114,8 +123,25 @@ def _mpc_recipes() -> dict[str, ControllerRecipe]:
     return out
 
 
+SPEED_VARIANTS: dict[str, ControllerRecipe] = {
+    "ssgp-mpc-nominal-hessian": ControllerRecipe(
+        "ssgp-mpc-nominal-hessian", "SSGP MPC, nominal Hessian", "mpc",
+        "ssgp-mpc with the GP's second derivatives dropped from the Lagrangian Hessian "
+        "(hessian='nominal')", learner="ssgp", learn_online=True,
+        settings=(("hessian", "nominal"),)),
+    "ssgp-mpc-model-inputs": ControllerRecipe(
+        "ssgp-mpc-model-inputs", "SSGP MPC, model inputs", "mpc",
+        "ssgp-mpc whose learner sees only the states the nominal model's accelerations depend "
+        "on (input_indices='model')", learner="ssgp", learn_online=True,
+        settings=(("input_indices", "model"),)),
+}
+"""Variants of ``ssgp-mpc`` that trade exactness or generality for speed (issue: the SSGP-MPC's
+step time), compared by the ``speed-options`` preset."""
+
+
 CONTROLLERS: dict[str, ControllerRecipe] = {
     **_mpc_recipes(),
+    **SPEED_VARIANTS,
     "sac": ControllerRecipe("sac", "SAC", "rl", "shipped stable-baselines3 SAC policy",
                             algo="sac"),
     "ppo": ControllerRecipe("ppo", "PPO", "rl", "shipped stable-baselines3 PPO policy",
@@ -216,7 +242,7 @@ def build_controller(name: str, env: gym.Env, env_name: str, seed: int,
     obs, _ = env.reset(seed=seed)
     learner = make_learner(recipe.learner) if recipe.learner is not None else None
     agent = PseudospectralMPC.from_env(env, learner, oracle=recipe.oracle, mode=recipe.mode,
-                                       learn_online=recipe.learn_online)
+                                       learn_online=recipe.learn_online, **dict(recipe.settings))
     if data is not None:
         agent.pretrain(data)
     agent.reset()

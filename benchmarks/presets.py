@@ -180,6 +180,24 @@ def mpc_acceptance(seeds: Sequence[int] = tuple(range(10)),
         specs, ("acceptance", "summary", "step_times"))
 
 
+def speed_options(seeds: Sequence[int] = tuple(range(10)),
+                  quad_seeds: Sequence[int] = tuple(range(5))) -> Experiment:
+    """The SSGP-MPC against its two speed variants and the nominal MPC."""
+    controllers = ("nominal-mpc", "ssgp-mpc", "ssgp-mpc-nominal-hessian",
+                   "ssgp-mpc-model-inputs")
+    specs = episodes(controllers, [("cartpole", "online"), ("dubins", "paper")], seeds)
+    specs += episodes(controllers, [("quadrotor", "gp")], quad_seeds)
+    return Experiment(
+        "speed-options", "SSGP-MPC speed options",
+        "Two ways to make the SSGP-MPC's step cheaper, each against the SSGP-MPC and the "
+        "nominal MPC: *nominal Hessian* drops the GP's second derivatives from the Lagrangian "
+        "Hessian (constraints and Jacobian stay exact); *model inputs* feeds the learner only "
+        "the states the parametric nominal model's accelerations depend on (quadrotor: 13 "
+        "inputs instead of 19; Dubins 4 instead of 6; cart pole 5 instead of 6). Cart pole "
+        "`online` and Dubins on 10 seeds, quadrotor `gp` on 5.",
+        specs, ("summary", "step_times"))
+
+
 def quick() -> Experiment:
     """A couple of minutes: the main controllers on every env, one or two seeds."""
     specs = episodes(("nominal-mpc", "gp-mpc", "ssgp-mpc", "oracle-mpc", "sac"),
@@ -214,6 +232,8 @@ PRESETS: dict[str, Preset] = {
     "peers": Preset("peers", "pseudospectral MPC vs do-mpc (needs do-mpc)", (peers(),)),
     "mpc-acceptance": Preset("mpc-acceptance", "the MPC issue's acceptance runs",
                              (mpc_acceptance(),)),
+    "speed-options": Preset("speed-options", "SSGP-MPC speed variants (not part of full)",
+                            (speed_options(),)),
     "full": Preset("full", "everything: all experiments above except quick",
                    (paper_tables(), dubins(), sample_efficiency(), compute(), peers(),
                     mpc_acceptance())),

@@ -162,6 +162,10 @@ class PseudospectralMPC:
         learn_online: feed observed transitions to ``learner.update`` (if the learner has one).
         uncertain_indices: state components with a learned residual (default: the model's
             accelerations, ``model.dynamic_indices``).
+        input_indices: state components fed to the learner: ``None`` (all), indices, or
+            ``"model"`` (those the parametric nominal model's uncertain rates depend on,
+            :meth:`ResidualModel.model_inputs`: fewer learner inputs, a cheaper NLP; it assumes
+            the model error lies within the model's structure).
         uncertainty_radius: ``kappa`` >= 0; with obstacles and a learner, the obstacle constraint
             is ``distance >= O_r + B_r + kappa * U_r`` with ``U_r`` the one-step position
             standard deviation from the learner's predictive variance in the direction of the
@@ -185,6 +189,12 @@ class PseudospectralMPC:
             same reason.
         jit: compile the NLP's functions to C with the system compiler (CasADi JIT): a few
             seconds once per agent, faster solves when the learned model dominates the cost.
+        hessian: second derivatives the NLP solver gets with a learner. ``"exact"``: of the
+            whole model. ``"nominal"``: of the nominal physics only (the learned residual's
+            second derivatives are dropped from the Lagrangian Hessian; its values and first
+            derivatives stay in the constraints and their Jacobian, so a converged plan is the
+            same). The residual's Hessian is most of the cost of an iteration with a learner
+            (``python -m benchmarks.profile_mpc``). No effect without a learner.
     """
 
     def __init__(self, model: ControlModel, learner: Any | None = None, *,
@@ -192,17 +202,21 @@ class PseudospectralMPC:
                  horizon: float | None = None, n_nodes: int | None = None,
                  n_intervals: int | None = None, replan_every: int = 1,
                  learn_online: bool = True, uncertain_indices: tuple[int, ...] | None = None,
+                 input_indices: tuple[int, ...] | Literal["model"] | None = None,
                  uncertainty_radius: float = 0.0, control_at_t0: ControlAtT0 = "period_mean",
                  solver: str = "ipopt", solver_options: Mapping[str, Any] | None = None,
                  max_solve_time: float | None = 1.0, max_iterations: int = 500,
                  state_margin: float = 0.05, state_penalty: float | None = 1e4,
-                 obstacle_margin: float = 0.1, jit: bool = False) -> None:
+                 obstacle_margin: float = 0.1, jit: bool = False,
+                 hessian: Literal["exact", "nominal"] = "exact") -> None:
         if not isinstance(model, ControlModel):
             raise TypeError(f"model must be a gp_envs ControlModel, got {type(model).__name__}")
         if mode not in ("receding", "episodic"):
             raise ValueError(f"mode must be 'receding' or 'episodic', got {mode!r}")
         if control_at_t0 not in ("period_mean", "extrapolate", "first_node"):
             raise ValueError(f"unknown control_at_t0 {control_at_t0!r}")
+        if hessian not in ("exact", "nominal"):
+            raise ValueError(f"hessian must be 'exact' or 'nominal', got {hessian!r}")
         if int(replan_every) < 1:
             raise ValueError(f"replan_every must be >= 1, got {replan_every}")
         if not (np.isfinite(uncertainty_radius) and uncertainty_radius >= 0):
@@ -236,8 +250,9 @@ class PseudospectralMPC:
         self.state_penalty = None if state_penalty is None else float(state_penalty)
         self.max_iterations = int(max_iterations)
         self.jit = bool(jit)
+        self.hessian = hessian
         self.obstacle_margin = float(obstacle_margin)
-        self.residual = ResidualModel(model, uncertain_indices)
+        self.residual = ResidualModel(model, uncertain_indices, input_indices)
 
         self._model_source: Callable[[], ControlModel] | None = None
         self._ocp: GaussPseudospectralSolver | None = None
@@ -373,6 +388,9 @@ class PseudospectralMPC:
                                                                       theta))
             return xdot
 
+        def nominal_dynamics(x: Any, u: Any, p: Any) -> Any:
+            return f_param(x, u, split(p)[0])
+
         half = 0.5 * (model.x_ub - model.x_lb)
         shrink = np.where(np.isfinite(half), self.state_margin * half, 0.0)
         x_lb, x_ub = model.x_lb + shrink, model.x_ub - shrink
@@ -413,6 +431,8 @@ class PseudospectralMPC:
             x_ub=model.x_ub if soft else x_ub,
             u_lb=model.u_lb,
             u_ub=model.u_ub, x0=np.zeros(model.n_states), path_constraints=path,
+            hessian_dynamics=(nominal_dynamics if learner is not None and self.hessian == "nominal"
+                              else None),
         )
         options = dict(self.solver_options)
         if self.solver == "ipopt":

@@ -40,13 +40,20 @@ class ResidualModel:
         model: the nominal model the residual corrects.
         uncertain_indices: state components that get a learned residual (default: the model's
             ``dynamic_indices``).
-        input_indices: state components fed to the learner (default: all).
+        input_indices: state components fed to the learner: indices, ``None`` (all), or
+            ``"model"``: those the parametric nominal model's uncertain rates depend on
+            (:meth:`model_inputs`).
     """
 
     def __init__(self, model: ControlModel, uncertain_indices: Sequence[int] | None = None,
-                 input_indices: Sequence[int] | None = None) -> None:
+                 input_indices: Sequence[int] | str | None = None) -> None:
         n = model.n_states
         unc = tuple(model.dynamic_indices if uncertain_indices is None else uncertain_indices)
+        if isinstance(input_indices, str):
+            if input_indices != "model":
+                raise ValueError(f"input_indices must be indices, None or 'model', "
+                                 f"got {input_indices!r}")
+            input_indices = self.model_inputs(model, unc)
         inp = tuple(range(n) if input_indices is None else input_indices)
         for name, idx in (("uncertain_indices", unc), ("input_indices", inp)):
             if not idx or any(not 0 <= int(i) < n for i in idx) or len(set(idx)) != len(idx):
@@ -72,6 +79,28 @@ class ResidualModel:
         mismatch = (stepped - x_next)[list(self.uncertain_indices)]
         self._newton_fn = ca.Function("newton", [x, u, x_next, r],
                                       [mismatch, ca.jacobian(mismatch, r)])
+
+    @staticmethod
+    def model_inputs(model: ControlModel, uncertain_indices: Sequence[int]) -> tuple[int, ...]:
+        """State components the uncertain rates of the *parametric* nominal model depend on.
+
+        The structural dependence of ``f_nominal(x, u; params)`` with the parameters symbolic:
+        the residual of wrong parameter values is a function of these components (and ``u``)
+        only, e.g. not of the quadrotor's position or velocity. An effect outside the model's
+        structure (drag on a drag-free model) may depend on others: then feed all components.
+
+        Args:
+            model: the nominal model. uncertain_indices: rows of ``f`` with a residual.
+
+        Returns:
+            Sorted state indices (empty if the rates depend on ``u`` only).
+        """
+        f = model.casadi_parametric_function()
+        x = ca.SX.sym("x", model.n_states)
+        u = ca.SX.sym("u", model.n_controls)
+        p = ca.SX.sym("p", len(model.param_names))
+        rows = ca.jacobian(f(x, u, p)[list(uncertain_indices)], x).sparsity()
+        return tuple(sorted({int(c) for c in rows.get_col()}))
 
     # ------------------------------------------------------------------ inputs
     def features(self, x: ca.SX | ca.MX, u: ca.SX | ca.MX) -> ca.SX | ca.MX:

@@ -87,6 +87,36 @@ def test_semiparametric_dynamics_add_the_learner_mean_on_the_accelerations():
     np.testing.assert_allclose(got, expected, rtol=1e-10)
 
 
+def test_model_inputs_are_the_states_the_parametric_model_depends_on():
+    """Quadrotor: the accelerations depend on the attitude, the body rates and the thrusts (with
+    mass and inertia symbolic), not on position or velocity; Dubins' rates only on the heading."""
+    quad = gym.make(QUAD).unwrapped.nominal_model
+    assert ResidualModel.model_inputs(quad, quad.dynamic_indices) == (3, 4, 5, 9, 10, 11)
+    res = ResidualModel(quad, input_indices="model")
+    assert res.n_inputs == 3 + 6 + 4  # body rates, sin/cos of three angles, thrusts
+    dubins = gym.make(DUBINS).unwrapped.nominal_model
+    assert ResidualModel(dubins, input_indices="model").input_indices == (2,)
+    with pytest.raises(ValueError, match="input_indices"):
+        ResidualModel(quad, input_indices="everything")
+
+
+def test_nominal_hessian_gives_the_exact_hessians_plan():
+    """hessian='nominal' changes IPOPT's iterates, not the optimum it converges to."""
+    env = gym.make(CART, scenario="online")
+    data = collect_initial_data(env, 200, seed=0)
+    plans = {}
+    for hessian in ("exact", "nominal"):
+        agent = PseudospectralMPC.from_env(env, online_ssgp(), hessian=hessian,
+                                           input_indices="model")
+        agent.pretrain(data)
+        obs, _ = env.reset(seed=0)
+        agent.act(obs)
+        assert agent.diagnostics[-1].success
+        plans[hessian] = agent.diagnostics[-1].plan_x
+    assert agent.residual.n_inputs == 5
+    np.testing.assert_allclose(plans["nominal"], plans["exact"], atol=1e-6)
+
+
 # ------------------------------------------------------------------------ agent contract
 def test_act_returns_float32_in_bounds_and_rejects_bad_observations():
     env = gym.make(CART)

@@ -264,6 +264,34 @@ def test_brachistochrone_free_final_time() -> None:
     assert sol.t[-1] == sol.tf and sol.t_nodes[-1] < sol.tf
 
 
+def test_approximate_hessian_changes_the_path_not_the_solution() -> None:
+    """``hessian_dynamics``: the Lagrangian Hessian of another model, the constraints of the
+    true one. The same model gives IPOPT's exact run; a wrong one (gravity 20% low in the
+    second derivatives) other iterates but the same optimum, still the cycloid's time. (Far
+    cruder Hessians converge slowly or not at all: 0.5 g takes ~1,000 iterations, 0 none.)"""
+    def problem(hessian_dynamics: object) -> OptimalControlProblem:
+        return OptimalControlProblem(
+            n_states=3, n_controls=1, dynamics=brachistochrone_dynamics,
+            hessian_dynamics=hessian_dynamics, terminal_cost=lambda x0, xf, tf: tf,
+            x0=[0.0, 10.0, 0.0], xf_lb=[10.0, 5.0, -np.inf], xf_ub=[10.0, 5.0, np.inf],
+            tf=None, tf_bounds=(0.1, 10.0), tf_guess=2.0, u_lb=0.0, u_ub=np.pi)
+
+    def crude(x: ca.SX, u: ca.SX) -> ca.SX:
+        return ca.vertcat(x[2] * ca.sin(u[0]), -x[2] * ca.cos(u[0]), 0.8 * G * ca.cos(u[0]))
+
+    exact = GaussPseudospectralSolver(problem(None), n_nodes=20).solve()
+    same = GaussPseudospectralSolver(problem(brachistochrone_dynamics), n_nodes=20).solve()
+    other = GaussPseudospectralSolver(problem(crude), n_nodes=20).solve()
+    assert exact.success and same.success and other.success
+    assert same.iterations == exact.iterations
+    np.testing.assert_allclose(same.x, exact.x, atol=1e-10)
+    assert other.iterations != exact.iterations
+    assert abs(other.tf - brachistochrone_time(10.0, 5.0)) < 1e-6
+    np.testing.assert_allclose(other.x, exact.x, atol=1e-6)
+    with pytest.raises(ValueError, match="hessian_dynamics"):
+        problem(lambda x, u: ca.vertcat(x[0], x[1]))
+
+
 def test_parametric_resolve_warm_start_matches_cold() -> None:
     solver = GaussPseudospectralSolver(parametric_brachistochrone(), n_nodes=16)
     first = solver.solve(p=[10.0, 5.0], x0=[0.0, 10.0, 0.0])

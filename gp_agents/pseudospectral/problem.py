@@ -123,6 +123,8 @@ class ProblemFunctions:
 
     Attributes:
         node: ``(x (n,), u (m,), p (n_p,)) -> (xdot (n,), L (1,), c (n_c,))``.
+        node_hessian: the same with the problem's ``hessian_dynamics`` in place of its
+            ``dynamics``, or None if it has none.
         boundary: ``(x0 (n,), xf (n,), tf (1,), p (n_p,)) -> (Phi (1,), b (n_b,))``.
         n_path: number of path constraints n_c.
         n_boundary: number of boundary constraints n_b.
@@ -132,6 +134,7 @@ class ProblemFunctions:
     boundary: ca.Function
     n_path: int
     n_boundary: int
+    node_hessian: ca.Function | None = None
 
 
 @dataclass
@@ -165,6 +168,13 @@ class OptimalControlProblem:
             i.e. lb = -inf, ub = 0).
         boundary_constraints: ``b(x0, xf, tf, p) -> (n_b,)``, or None.
         boundary_lb, boundary_ub: bounds on b (default: ``b == 0``).
+        hessian_dynamics: optional approximation of ``dynamics`` (same signature) used only for
+            the second derivatives the NLP solver asks for: the Hessian of the Lagrangian is
+            that of the problem with ``hessian_dynamics`` in place of ``dynamics``. Constraints
+            and their Jacobian stay exact, so a converged solution is the same; only the Newton
+            steps are inexact. Worth it when ``dynamics`` is a cheap dominant part plus an
+            expensive small correction (physics plus a learned residual): the correction's
+            second derivatives are the dearest part of each iteration. None: exact Hessian.
     """
 
     n_states: int
@@ -193,6 +203,7 @@ class OptimalControlProblem:
     boundary_constraints: SymbolicFn | None = None
     boundary_lb: ArrayLike | None = None
     boundary_ub: ArrayLike | None = None
+    hessian_dynamics: SymbolicFn | None = None
     _functions: ProblemFunctions | None = field(default=None, init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -205,6 +216,8 @@ class OptimalControlProblem:
             raise ValueError("n_states must be >= 1")
         if not callable(self.dynamics):
             raise ValueError("dynamics must be callable (a Python function or casadi.Function)")
+        if self.hessian_dynamics is not None and not callable(self.hessian_dynamics):
+            raise ValueError("hessian_dynamics must be callable or None")
         for name in ("running_cost", "terminal_cost", "path_constraints", "boundary_constraints"):
             fn = getattr(self, name)
             if fn is not None and not callable(fn):
@@ -302,6 +315,12 @@ class OptimalControlProblem:
         xdot = _as_column(_call(self.dynamics, "dynamics", [x, u, p], 2), sym, "dynamics")
         if xdot.shape != (n, 1):
             raise ValueError(f"dynamics must return shape ({n},), got {xdot.shape}")
+        xdot_h = None
+        if self.hessian_dynamics is not None:
+            xdot_h = _as_column(_call(self.hessian_dynamics, "hessian_dynamics", [x, u, p], 2),
+                                sym, "hessian_dynamics")
+            if xdot_h.shape != (n, 1):
+                raise ValueError(f"hessian_dynamics must return shape ({n},), got {xdot_h.shape}")
         if self.running_cost is not None:
             lag = _as_column(
                 _call(self.running_cost, "running_cost", [x, u, p], 2), sym, "running_cost"
@@ -339,9 +358,14 @@ class OptimalControlProblem:
         node = ca.Function(
             "gpm_node", [x, u, p], [xdot, lag, c], ["x", "u", "p"], ["xdot", "L", "c"]
         )
+        node_hessian = None
+        if xdot_h is not None:
+            node_hessian = ca.Function("gpm_node_hessian", [x, u, p], [xdot_h, lag, c],
+                                       ["x", "u", "p"], ["xdot", "L", "c"])
         boundary = ca.Function(
             "gpm_boundary", [x0, xf, tf, p], [phi, b], ["x0", "xf", "tf", "p"], ["Phi", "b"]
         )
         return ProblemFunctions(
-            node=node, boundary=boundary, n_path=int(c.shape[0]), n_boundary=int(b.shape[0])
+            node=node, boundary=boundary, n_path=int(c.shape[0]), n_boundary=int(b.shape[0]),
+            node_hessian=node_hessian,
         )

@@ -300,10 +300,6 @@ class GaussPseudospectralSolver:
         start_cols = [s * (K + 1) for s in range(S)]
         end_cols = [(s + 1) * (K + 1) for s in range(S)]
 
-        # Dynamics, running cost and path constraints at all M nodes through one mapped call.
-        node_map = fns.node.map(M)
-        F, L, C = node_map(X[:, node_cols], U, ca.repmat(P, 1, M))
-
         # Half interval lengths h_s per node column: (1, M); h_s = (tf - t0)/2 * frac_len_s.
         half_span = 0.5 * (tf_expr - pb.t0)
         h_row = half_span * ca.DM(np.repeat(self._frac_len, K)[None, :])
@@ -321,13 +317,18 @@ class GaussPseudospectralSolver:
         q_cols = [s for s in range(S) for _ in range(K)]
         W_big = ca.DM(ca.Sparsity.triplet(M, S, q_rows, q_cols), np.tile(self._weights, S))
 
-        hF = F * ca.repmat(h_row, n, 1)  # (n, M): h_s f at the nodes
-        defects = ca.mtimes(X, D_big) - hF  # paper eq. (AC)
-        quadrature = X[:, end_cols] - X[:, start_cols] - ca.mtimes(hF, W_big)  # paper eq. (QC)
-        phi, b = fns.boundary(X[:, 0], X[:, N - 1], tf_expr, P)
-        cost = phi + ca.mtimes(L * h_row, ca.DM(np.tile(self._weights, S)))  # paper eq. (DBP)
+        def transcribe(node: ca.Function) -> tuple[ca.MX, ca.MX]:
+            """Cost and constraints with dynamics, running cost and path constraints evaluated
+            at all M nodes through one mapped call of ``node``."""
+            F, L, C = node.map(M)(X[:, node_cols], U, ca.repmat(P, 1, M))
+            hF = F * ca.repmat(h_row, n, 1)  # (n, M): h_s f at the nodes
+            defects = ca.mtimes(X, D_big) - hF  # paper eq. (AC)
+            quadrature = X[:, end_cols] - X[:, start_cols] - ca.mtimes(hF, W_big)  # eq. (QC)
+            phi, b = fns.boundary(X[:, 0], X[:, N - 1], tf_expr, P)
+            cost = phi + ca.mtimes(L * h_row, ca.DM(np.tile(self._weights, S)))  # eq. (DBP)
+            return cost, ca.vertcat(ca.vec(defects), ca.vec(quadrature), ca.vec(C), b)
 
-        g = ca.vertcat(ca.vec(defects), ca.vec(quadrature), ca.vec(C), b)
+        cost, g = transcribe(fns.node)
         self._nlp_x_size = int(w.shape[0])
         self._nlp_g_size = int(g.shape[0])
         self._n_defect = n * M
@@ -352,6 +353,16 @@ class GaussPseudospectralSolver:
         nlp = {"x": w, "p": P, "f": cost, "g": g}
         opts = dict(self.solver_options)
         opts.setdefault("expand", self.expand)
+        if fns.node_hessian is not None and "hess_lag" not in opts:
+            # Lagrangian Hessian of the same NLP with the problem's hessian_dynamics: the
+            # multipliers are the true NLP's, the second derivatives the approximation's.
+            cost_h, g_h = transcribe(fns.node_hessian)
+            lam_f, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", g.shape[0])
+            lagrangian = lam_f * cost_h + ca.dot(lam_g, g_h)
+            hess = ca.triu(ca.hessian(lagrangian, w)[0])
+            hess_lag = ca.Function("gpm_hess_lag", [w, P, lam_f, lam_g], [hess],
+                                   ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])
+            opts["hess_lag"] = hess_lag.expand() if self.expand else hess_lag
         self._solver = ca.nlpsol("gpm_nlp", self.solver_name, nlp, opts)
 
     # ------------------------------------------------------------------ initial guesses
