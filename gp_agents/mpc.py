@@ -380,16 +380,15 @@ class PseudospectralMPC:
         def split(p: Any) -> tuple[Any, Any]:
             return p[:k], p[k:k + theta_size]
 
-        def dynamics(x: Any, u: Any, p: Any) -> Any:
-            params, theta = split(p)
-            xdot = f_param(x, u, params)
-            if learner is not None:
-                xdot = xdot + ca.mtimes(selector, learner.casadi_mean(residual.features(x, u),
-                                                                      theta))
-            return xdot
-
         def nominal_dynamics(x: Any, u: Any, p: Any) -> Any:
             return f_param(x, u, split(p)[0])
+
+        def dynamics(x: Any, u: Any, p: Any) -> Any:
+            xdot = nominal_dynamics(x, u, p)
+            if learner is not None:
+                xdot = xdot + ca.mtimes(selector, learner.casadi_mean(residual.features(x, u),
+                                                                      split(p)[1]))
+            return xdot
 
         half = 0.5 * (model.x_ub - model.x_lb)
         shrink = np.where(np.isfinite(half), self.state_margin * half, 0.0)

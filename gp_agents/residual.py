@@ -54,6 +54,9 @@ class ResidualModel:
                 raise ValueError(f"input_indices must be indices, None or 'model', "
                                  f"got {input_indices!r}")
             input_indices = self.model_inputs(model, unc)
+            if not input_indices:
+                raise ValueError("input_indices='model': the nominal model's uncertain rates "
+                                 "depend on no state component; give the indices explicitly")
         inp = tuple(range(n) if input_indices is None else input_indices)
         for name, idx in (("uncertain_indices", unc), ("input_indices", inp)):
             if not idx or any(not 0 <= int(i) < n for i in idx) or len(set(idx)) != len(idx):
