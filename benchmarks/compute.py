@@ -3,7 +3,8 @@
 Two trial kinds (scheduled and stored like episodes, see :mod:`benchmarks.trial`):
 
 - ``"ssgp-act-scaling"`` (``param`` = samples learned before the episode, e.g. 200, 1000,
-  5000): the ``ssgp-mpc`` recipe pretrained on the usual initial data, then fed
+  5000): the trial's SSGP-MPC recipe (``spec.controller``, e.g. ``ssgp-mpc``) pretrained
+  on the usual initial data, then fed
   ``param - n_init`` further transitions of the same crude data controller
   (:func:`gp_agents.collect_initial_data`, another seed) with ``IncrementalSSGP.update``; the
   env is reset with the trial's seed and one closed-loop episode is run with every ``act``
@@ -40,7 +41,7 @@ def run_act_scaling(spec: TrialSpec) -> dict[str, Any]:
     if n_samples < spec.n_init:
         raise ValueError(f"param (samples learned) must be >= n_init={spec.n_init}")
     env = make_env(spec.env, spec.scenario)
-    built = build_controller("ssgp-mpc", env, spec.env, spec.seed, spec.n_init)
+    built = build_controller(spec.controller, env, spec.env, spec.seed, spec.n_init)
     agent = built.agent
     update_s = 0.0
     if n_samples > spec.n_init:

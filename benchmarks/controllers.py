@@ -16,9 +16,10 @@ ssgp-mpc           nominal + :func:`gp_agents.online_ssgp` (``IncrementalSSGP(50
 <base>-episodic     the same model, planned once over the whole episode and run open loop
 =================  ======================================================================
 
-Speed variants of ``ssgp-mpc`` (:data:`SPEED_VARIANTS`, preset ``speed-options``):
-``ssgp-mpc-nominal-hessian`` (``hessian="nominal"``) and ``ssgp-mpc-model-inputs``
-(``input_indices="model"``).
+Speed variants of ``ssgp-mpc`` (:data:`SPEED_VARIANTS`, presets ``speed-options`` and
+``linearized``): ``ssgp-mpc-nominal-hessian`` (``hessian="nominal"``), ``ssgp-mpc-model-inputs``
+(``input_indices="model"``), ``ssgp-mpc-linearized`` (``learned_dynamics="linearized"``) and
+``ssgp-mpc-linearized-model-inputs`` (both).
 
 RL recipes load the shipped stable-baselines3 policies from ``benchmarks/models/<env>/<algo>/``
 (:class:`gp_agents.rl.RLAgent`); a missing model (or one trained for another scenario) makes the
@@ -134,6 +135,16 @@ SPEED_VARIANTS: dict[str, ControllerRecipe] = {
         "ssgp-mpc whose learner sees only the states the nominal model's accelerations depend "
         "on (input_indices='model')", learner="ssgp", learn_online=True,
         settings=(("input_indices", "model"),)),
+    "ssgp-mpc-linearized": ControllerRecipe(
+        "ssgp-mpc-linearized", "SSGP MPC, linearized", "mpc",
+        "ssgp-mpc planning with the GP residual linearized per node about the warm start "
+        "(learned_dynamics='linearized')", learner="ssgp", learn_online=True,
+        settings=(("learned_dynamics", "linearized"),)),
+    "ssgp-mpc-linearized-model-inputs": ControllerRecipe(
+        "ssgp-mpc-linearized-model-inputs", "SSGP MPC, linearized, model inputs", "mpc",
+        "ssgp-mpc-linearized whose learner sees only the states the nominal model's "
+        "accelerations depend on (input_indices='model')", learner="ssgp", learn_online=True,
+        settings=(("learned_dynamics", "linearized"), ("input_indices", "model"))),
 }
 """Variants of ``ssgp-mpc`` that trade exactness or generality for speed (issue: the SSGP-MPC's
 step time), compared by the ``speed-options`` preset."""

@@ -198,6 +198,31 @@ def speed_options(seeds: Sequence[int] = tuple(range(10)),
         specs, ("summary", "step_times"))
 
 
+LINEARIZED_CONTROLLERS = ("nominal-mpc", "ssgp-mpc", "ssgp-mpc-linearized",
+                          "ssgp-mpc-linearized-model-inputs")
+
+
+def linearized(seeds: Sequence[int] = tuple(range(10)),
+               dubins_seeds: Sequence[int] = tuple(range(50)),
+               act_samples: Sequence[int] = (200, 5000)) -> Experiment:
+    """The MPC acceptance runs for the linearized SSGP-MPC, against the exact one and nominal."""
+    specs = episodes(LINEARIZED_CONTROLLERS, [("cartpole", "online"), ("quadrotor", "gp"),
+                                              ("quadrotor", "online")], seeds)
+    specs += episodes(LINEARIZED_CONTROLLERS, [("dubins", "paper")], dubins_seeds)
+    specs += tuple(TrialSpec("ssgp-act-scaling", env, scenario, c, 0, param=n)
+                   for env, scenario in (("cartpole", "online"), ("quadrotor", "gp"))
+                   for c in LINEARIZED_CONTROLLERS[2:] for n in act_samples)
+    return Experiment(
+        "linearized", "SSGP-MPC with the learned residual linearized per node",
+        "The MPC acceptance runs (cart pole `online` and quadrotor `gp`/`online` on 10 seeds, "
+        "Dubins on 50) for the nominal MPC, the SSGP-MPC with the GP inside the NLP (exact) "
+        "and the SSGP-MPC planning with the GP linearized per collocation node about the warm "
+        "start (`learned_dynamics='linearized'`), with all learner inputs and with the model's "
+        "inputs only, all in one run so that the step-time ratios compare like with like; and "
+        "the linearized recipes' step time after learning 200 vs 5,000 samples.",
+        specs, ("acceptance", "summary", "step_times", "scaling"))
+
+
 def quick() -> Experiment:
     """A couple of minutes: the main controllers on every env, one or two seeds."""
     specs = episodes(("nominal-mpc", "gp-mpc", "ssgp-mpc", "oracle-mpc", "sac"),
@@ -234,6 +259,8 @@ PRESETS: dict[str, Preset] = {
                              (mpc_acceptance(),)),
     "speed-options": Preset("speed-options", "SSGP-MPC speed variants (not part of full)",
                             (speed_options(),)),
+    "linearized": Preset("linearized", "acceptance runs of the linearized SSGP-MPC "
+                         "(not part of full)", (linearized(),)),
     "full": Preset("full", "everything: all experiments above except quick",
                    (paper_tables(), dubins(), sample_efficiency(), compute(), peers(),
                     mpc_acceptance())),

@@ -503,8 +503,8 @@ def compute_rows(trials: Iterable[Trial]) -> list[dict[str, Any]]:
     for t in trials:
         if t.spec.kind in ("ssgp-act-scaling", "ssgp-update-time") and t.ok:
             rows.append({"measurement": t.spec.kind, "env": t.spec.env,
-                         "scenario": t.spec.scenario, "seed": t.spec.seed,
-                         "param": t.spec.param, **t.metrics})
+                         "scenario": t.spec.scenario, "controller": t.spec.controller,
+                         "seed": t.spec.seed, "param": t.spec.param, **t.metrics})
     return rows
 
 
@@ -515,32 +515,42 @@ def section_scaling(ctx: Context, exp: Experiment) -> list[str]:
             and _row_key(r) in keys]
     if not rows:
         return []
-    rows.sort(key=lambda r: r["param"])
-    fig, ax = plt.subplots(figsize=(5, 3.6))
-    for t in (ctx.trials[s] for s in exp.specs if s.kind == "ssgp-act-scaling"):
-        if t.ok:
-            ax.boxplot([1e3 * t.arrays["act_time"]], positions=[t.spec.param],
-                       widths=[0.25 * t.spec.param], whis=(5, 95), showfliers=False)
-    ax.set_xscale("log")
-    ax.set_xticks([r["param"] for r in rows], [str(r["param"]) for r in rows])
-    ax.xaxis.set_minor_formatter(NullFormatter())
-    ax.set_xlabel("samples learned before the episode")
-    ax.set_ylabel("SSGP-MPC act() time (ms)")
-    ax.grid(alpha=0.3)
+    rows.sort(key=lambda r: (r["env"], r.get("controller", "ssgp-mpc"), r["param"]))
+    groups = list(dict.fromkeys((r["env"], r["scenario"], r.get("controller", "ssgp-mpc"))
+                                for r in rows))
+    fig, axes = plt.subplots(1, len(groups), figsize=(5 * len(groups), 3.6), squeeze=False)
+    for ax, (env, scenario, controller) in zip(axes.flat, groups, strict=True):
+        params = []
+        for t in (ctx.trials[s] for s in exp.specs if s.kind == "ssgp-act-scaling"
+                  and (s.env, s.scenario, s.controller) == (env, scenario, controller)):
+            if t.ok:
+                params.append(t.spec.param)
+                ax.boxplot([1e3 * t.arrays["act_time"]], positions=[t.spec.param],
+                           widths=[0.25 * t.spec.param], whis=(5, 95), showfliers=False)
+        ax.set_xscale("log")
+        ax.set_xticks(params, [str(p) for p in params])
+        ax.xaxis.set_minor_formatter(NullFormatter())
+        ax.set_xlabel("samples learned before the episode")
+        ax.set_ylabel("act() time (ms)")
+        ax.set_title(f"{_label(controller)}, {env} `{scenario}`", fontsize=9)
+        ax.grid(alpha=0.3)
+    fig.tight_layout()
     name = _save(fig, ctx.out_dir, f"{exp.name}_ssgp_act_scaling.png")
-    lines = ["", "SSGP-MPC (r = 50) on the cart pole `online`, seed 0, after learning N samples:",
+    lines = ["", "SSGP-MPC recipes (r = 50), seed 0, after learning N samples:",
              "", f"![act time vs samples]({name})", ""]
     lines += markdown_table(
-        ["samples learned", "act median (ms)", "p95 (ms)", "max (ms)", "batch update (s)",
-         "success", "cost"],
-        [[r["param"], r["act_median_ms"], r["act_p95_ms"], r["act_max_ms"], r["batch_update_s"],
-          r["success"], r["cost"]] for r in rows], ["---:"] * 7)
+        ["env", "scenario", "controller", "samples learned", "act median (ms)", "p95 (ms)",
+         "max (ms)", "batch update (s)", "success", "cost"],
+        [[r["env"], r["scenario"], _label(r.get("controller", "ssgp-mpc")), r["param"],
+          r["act_median_ms"], r["act_p95_ms"], r["act_max_ms"], r["batch_update_s"],
+          r["success"], r["cost"]] for r in rows], ["---"] * 3 + ["---:"] * 7)
     return lines
 
 
 def _row_key(row: dict[str, Any]) -> str:
-    return TrialSpec(row["measurement"], row["env"], row["scenario"],
-                     "ssgp-mpc" if row["measurement"] == "ssgp-act-scaling" else "ssgp",
+    default = "ssgp-mpc" if row["measurement"] == "ssgp-act-scaling" else "ssgp"
+    controller = row.get("controller") or default
+    return TrialSpec(row["measurement"], row["env"], row["scenario"], controller,
                      row["seed"], param=row["param"]).key
 
 
@@ -612,38 +622,52 @@ def section_peers(ctx: Context, exp: Experiment) -> list[str]:
     return lines
 
 
+SPEED_TARGET = 1.5
+"""The MPC issue's speed target: an SSGP recipe's median act time at most this many times the
+nominal MPC's, measured in the same run."""
+
+
 def section_acceptance(ctx: Context, exp: Experiment) -> list[str]:
-    """Headline numbers of the MPC issue's acceptance runs."""
+    """Headline numbers of the MPC issue's acceptance runs, for every MPC recipe in them."""
     by = {(r["env"], r["scenario"], r["controller"]): r for r in ctx.summaries[exp.name]}
+    order = list(dict.fromkeys(s.controller for s in exp.specs if s.kind == "episode"))
     lines = [""]
 
     def get(env: str, scenario: str, c: str) -> dict[str, Any] | None:
         r = by.get((env, scenario, c))
         return r if r and r["episodes"] else None
 
-    for c in ("nominal-mpc", "oracle-mpc", "ssgp-mpc"):
+    def speed(env: str, scenario: str, c: str, r: dict[str, Any]) -> str:
+        text = f"act median {_fmt(r['act_median_ms'], 1)} ms"
+        nominal = get(env, scenario, "nominal-mpc")
+        if c.startswith("ssgp") and nominal and nominal["act_median_ms"] > 0:
+            ratio = r["act_median_ms"] / nominal["act_median_ms"]
+            verdict = "met" if ratio <= SPEED_TARGET else "not met"
+            text += f" = **{ratio:.2f}x** the nominal MPC's (target {SPEED_TARGET}x: {verdict})"
+        return text
+
+    for c in order:
         r = get("cartpole", "online", c)
         if r:
             lines.append(f"- cart pole `online`, {_label(c)}: success "
                          f"{round(r['success_rate'] * r['episodes'])}/{r['episodes']}, mean "
-                         f"cost {_fmt(r['cost_mean'])}, act median {_fmt(r['act_median_ms'], 1)}"
-                         " ms")
+                         f"cost {_fmt(r['cost_mean'])}, {speed('cartpole', 'online', c, r)}")
     for scenario in ("gp", "online"):
-        for c in ("nominal-mpc", "ssgp-mpc"):
+        for c in order:
             r = get("quadrotor", scenario, c)
             if r:
                 lines.append(f"- quadrotor `{scenario}`, {_label(c)}: final position error mean "
                              f"{_fmt(r['final_position_error_mean'], 4)} m (max "
                              f"{_fmt(r['final_position_error_max'], 4)} m), success "
-                             f"{round(r['success_rate'] * r['episodes'])}/{r['episodes']}, act "
-                             f"median {_fmt(r['act_median_ms'], 1)} ms")
-    for c in ("nominal-mpc", "ssgp-mpc"):
+                             f"{round(r['success_rate'] * r['episodes'])}/{r['episodes']}, "
+                             f"{speed('quadrotor', scenario, c, r)}")
+    for c in order:
         r = get("dubins", "paper", c)
         if r:
             lines.append(f"- Dubins, {_label(c)}: goal reached "
                          f"{round(r['success_rate'] * r['episodes'])}/{r['episodes']}, "
-                         f"episodes touching the obstacle {r['episodes_with_violation']}, act "
-                         f"median {_fmt(r['act_median_ms'], 1)} ms")
+                         f"episodes touching the obstacle {r['episodes_with_violation']}, "
+                         f"{speed('dubins', 'paper', c, r)}")
     return lines
 
 

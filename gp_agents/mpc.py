@@ -46,6 +46,7 @@ from gp_agents.residual import ResidualModel
 from gp_envs.model import ControlModel
 
 ControlAtT0 = Literal["period_mean", "extrapolate", "first_node"]
+LearnedDynamics = Literal["exact", "linearized"]
 
 DEFAULT_SETTINGS: dict[str, dict[str, Any]] = {
     "cartpole": {"horizon": 1.5, "n_nodes": 16, "n_intervals": 1},
@@ -102,14 +103,17 @@ class StepRecord:
         replanned: whether an OCP was solved in this call.
         success: solver success of that solve (True when not replanned).
         status: solver status string (``"reuse"`` when not replanned).
-        iterations: NLP iterations (0 when not replanned).
-        solve_time: seconds spent in the NLP solver.
+        iterations: NLP iterations (0 when not replanned), summed over this call's solves.
+        solve_time: seconds spent in the NLP solver, summed likewise.
         act_time: seconds spent in the whole ``act`` call (learning update included).
         fallback: the applied control came from the previous plan because the solve failed.
         learner_samples: samples the learner has seen after this call's update.
         plan_t: (N,) times of the current plan's state points (relative to its start).
         plan_x: (N, n) the current plan's states (the predicted trajectory).
         action: (m,) the applied action.
+        solves: NLP solves in this call (retries and re-linearizations included).
+        linearization_error: with ``learned_dynamics="linearized"``, the accepted plan's
+            largest expansion error as a fraction of its tolerance (0 otherwise).
     """
 
     step: int
@@ -124,6 +128,8 @@ class StepRecord:
     plan_t: np.ndarray
     plan_x: np.ndarray
     action: np.ndarray
+    solves: int = 0
+    linearization_error: float = 0.0
 
 
 @dataclass
@@ -194,7 +200,30 @@ class PseudospectralMPC:
             second derivatives are dropped from the Lagrangian Hessian; its values and first
             derivatives stay in the constraints and their Jacobian, so a converged plan is the
             same). The residual's Hessian is most of the cost of an iteration with a learner
-            (``python -m benchmarks.profile_mpc``). No effect without a learner.
+            (``python -m benchmarks.profile_mpc``). No effect without a learner, nor with
+            ``learned_dynamics="linearized"`` (whose residual has no second derivatives).
+        learned_dynamics: how the learned residual enters the NLP. ``"exact"``: the learner's
+            CasADi mean at every collocation node, with all its derivatives (the paper's OCP).
+            ``"linearized"``: its first-order expansion about a reference trajectory, one per
+            node, ``mean(z_k) ~ g_k + J_k [x_k - xb_k; u_k - ub_k]``, with ``g_k, J_k`` from
+            the learner's numeric ``predict`` and ``predict_gradient``
+            (:meth:`ResidualModel.linearize`), passed as per-node NLP parameters; the
+            uncertainty radius, if any, is frozen at the reference too. The reference is the
+            warm start (the previous plan shifted in time), as in a real-time iteration: the
+            NLP then has the nominal model's structure and costs about what the nominal one
+            does, and the learner is evaluated once per node per solve instead of once per
+            node per IPOPT iteration with its second derivatives. After each solve the
+            residual is evaluated at the plan's nodes; the expansion's largest error there, as
+            a fraction of ``linearization_tol`` (relative to the largest residual over the
+            nodes, per output, plus an absolute 1e-3), is recorded
+            (``diagnostics_arrays()["linearization_error"]``). With ``max_linearizations`` >
+            1, a plan whose error exceeds 1 is re-linearized about itself and re-solved, up to
+            that many solves per replan. A fixed point of that loop is a KKT point of the exact
+            problem (model values and first derivatives agree there;
+            ``tests/test_mpc.py`` checks it). No effect without a learner.
+        max_linearizations: solves per replan in ``"linearized"`` mode (>= 1; default 1, one
+            linearization about the warm start per control period).
+        linearization_tol: relative tolerance of the expansion (see ``learned_dynamics``).
     """
 
     def __init__(self, model: ControlModel, learner: Any | None = None, *,
@@ -208,7 +237,9 @@ class PseudospectralMPC:
                  max_solve_time: float | None = 1.0, max_iterations: int = 500,
                  state_margin: float = 0.05, state_penalty: float | None = 1e4,
                  obstacle_margin: float = 0.1, jit: bool = False,
-                 hessian: Literal["exact", "nominal"] = "exact") -> None:
+                 hessian: Literal["exact", "nominal"] = "exact",
+                 learned_dynamics: LearnedDynamics = "exact", max_linearizations: int = 1,
+                 linearization_tol: float = 0.1) -> None:
         if not isinstance(model, ControlModel):
             raise TypeError(f"model must be a gp_envs ControlModel, got {type(model).__name__}")
         if mode not in ("receding", "episodic"):
@@ -217,6 +248,13 @@ class PseudospectralMPC:
             raise ValueError(f"unknown control_at_t0 {control_at_t0!r}")
         if hessian not in ("exact", "nominal"):
             raise ValueError(f"hessian must be 'exact' or 'nominal', got {hessian!r}")
+        if learned_dynamics not in ("exact", "linearized"):
+            raise ValueError(f"learned_dynamics must be 'exact' or 'linearized', "
+                             f"got {learned_dynamics!r}")
+        if int(max_linearizations) < 1:
+            raise ValueError(f"max_linearizations must be >= 1, got {max_linearizations}")
+        if not (np.isfinite(linearization_tol) and linearization_tol > 0):
+            raise ValueError(f"linearization_tol must be > 0, got {linearization_tol}")
         if int(replan_every) < 1:
             raise ValueError(f"replan_every must be >= 1, got {replan_every}")
         if not (np.isfinite(uncertainty_radius) and uncertainty_radius >= 0):
@@ -251,6 +289,9 @@ class PseudospectralMPC:
         self.max_iterations = int(max_iterations)
         self.jit = bool(jit)
         self.hessian = hessian
+        self.learned_dynamics = learned_dynamics
+        self.max_linearizations = int(max_linearizations)
+        self.linearization_tol = float(linearization_tol)
         self.obstacle_margin = float(obstacle_margin)
         self.residual = ResidualModel(model, uncertain_indices, input_indices)
 
@@ -352,18 +393,40 @@ class PseudospectralMPC:
 
     # ------------------------------------------------------------------ the OCP
     def _learner_theta(self) -> np.ndarray:
+        """The learner's CasADi parameter vector (exact mode), or an empty one.
+
+        In linearized mode the NLP holds no learner parameters: only fittedness is checked.
+        """
         if self.learner is None:
             return np.zeros(0)
         try:
+            if self._linearized:
+                self.learner.casadi_param_size()
+                return np.zeros(0)
             return np.asarray(self.learner.casadi_param_values(), float).ravel()
         except (ValueError, RuntimeError) as err:  # not fitted
             raise RuntimeError(
                 "the learner is not fitted: call agent.pretrain(collect_initial_data(env)) "
                 "or fit the learner before the first act()") from err
 
+    @property
+    def _linearized(self) -> bool:
+        return self.learner is not None and self.learned_dynamics == "linearized"
+
+    @property
+    def _frozen_uncertainty(self) -> bool:
+        """Whether the obstacle constraint uses a per-node variance (linearized mode)."""
+        unc = self.residual.uncertain_indices
+        return (self._linearized and bool(self.model.task.obstacles)
+                and self.uncertainty_radius > 0 and 0 in unc and 1 in unc)
+
     def _build(self, theta_size: int) -> None:
         model, residual, learner = self.model, self.residual, self.learner
-        if learner is not None:
+        linearized = self._linearized
+        d, cols = residual.n_outputs, list(residual.jacobian_columns)
+        n_j = d * (1 + len(cols))
+        n_q = n_j + (2 if self._frozen_uncertainty else 0)
+        if learner is not None and not linearized:
             size = self._learned_model_size(theta_size)
             if size > MAX_LEARNED_MODEL_SIZE:
                 raise ValueError(
@@ -380,12 +443,16 @@ class PseudospectralMPC:
         def split(p: Any) -> tuple[Any, Any]:
             return p[:k], p[k:k + theta_size]
 
-        def nominal_dynamics(x: Any, u: Any, p: Any) -> Any:
-            return f_param(x, u, split(p)[0])
+        def nominal_dynamics(x: Any, u: Any, p: Any, q: Any = None) -> Any:
+            return f_param(x, u, p[:k])
 
-        def dynamics(x: Any, u: Any, p: Any) -> Any:
+        def dynamics(x: Any, u: Any, p: Any, q: Any) -> Any:
             xdot = nominal_dynamics(x, u, p)
-            if learner is not None:
+            if linearized:  # q = [c; vec(J); ...]: the residual is c + J [x; u][cols]
+                jac = ca.reshape(q[d:n_j], d, len(cols))
+                xu = ca.vertcat(x, u)[cols]
+                xdot = xdot + ca.mtimes(selector, q[:d] + ca.mtimes(jac, xu))
+            elif learner is not None:
                 xdot = xdot + ca.mtimes(selector, learner.casadi_mean(residual.features(x, u),
                                                                       split(p)[1]))
             return xdot
@@ -412,26 +479,31 @@ class PseudospectralMPC:
 
         path = None
         if task.obstacles:
-            def path(x: Any, u: Any, p: Any) -> Any:
+            def path(x: Any, u: Any, p: Any, q: Any) -> Any:
                 out = []
                 for ob in task.obstacles:
-                    d = x[:2] - ca.DM(ob.center)
+                    dist = x[:2] - ca.DM(ob.center)
                     radius = ob.radius + task.body_radius + self.obstacle_margin
-                    if learner is not None and self.uncertainty_radius > 0:
+                    if self._frozen_uncertainty:  # the reference's variance, q[-2:]
+                        radius = radius + self.uncertainty_radius * self._radius_along(
+                            dist, q[n_q - 2], q[n_q - 1])
+                    elif learner is not None and self.uncertainty_radius > 0:
                         radius = radius + self.uncertainty_radius * self._sym_uncertainty(
-                            x, u, split(p)[1], d)
-                    out.append(radius**2 - ca.sumsqr(d))  # <= 0 keeps clear
+                            x, u, split(p)[1], dist)
+                    out.append(radius**2 - ca.sumsqr(dist))  # <= 0 keeps clear
                 return ca.vertcat(*out)
 
         problem = OptimalControlProblem(
             n_states=model.n_states, n_controls=model.n_controls, dynamics=dynamics,
-            n_params=k + theta_size, running_cost=running_cost, terminal_cost=terminal_cost,
+            n_params=k if linearized else k + theta_size,
+            n_node_params=n_q if linearized else 0, running_cost=running_cost,
+            terminal_cost=terminal_cost,
             t0=0.0, tf=self.horizon, x_lb=model.x_lb if soft else x_lb,
             x_ub=model.x_ub if soft else x_ub,
             u_lb=model.u_lb,
             u_ub=model.u_ub, x0=np.zeros(model.n_states), path_constraints=path,
-            hessian_dynamics=(nominal_dynamics if learner is not None and self.hessian == "nominal"
-                              else None),
+            hessian_dynamics=(nominal_dynamics if learner is not None and not linearized
+                              and self.hessian == "nominal" else None),
         )
         options = dict(self.solver_options)
         if self.solver == "ipopt":
@@ -460,9 +532,11 @@ class PseudospectralMPC:
         if 0 not in unc or 1 not in unc:
             return ca.DM(0.0)
         var = self.learner.casadi_variance(self.residual.features(x, u), theta)
-        vx, vy = var[unc.index(0)], var[unc.index(1)]
+        return self._radius_along(d, var[unc.index(0)], var[unc.index(1)])
+
+    def _radius_along(self, d: Any, vx: Any, vy: Any) -> Any:
+        """Radius along ``d`` of the 1-sigma ellipse with axes ``sqrt(vx) dt, sqrt(vy) dt``."""
         dist2 = ca.sumsqr(d) + 1e-12
-        # radius of the 1-sigma ellipse (axes sqrt(vx) dt, sqrt(vy) dt) along the unit vector d
         return self.model.dt / ca.sqrt((d[0] ** 2 / vx + d[1] ** 2 / vy) / dist2)
 
     # ------------------------------------------------------------------ acting
@@ -493,7 +567,7 @@ class PseudospectralMPC:
         replan = self._plan is None or (
             self.mode == "receding" and self._step - self._plan.step >= self.replan_every)
         record = dict(replanned=False, success=True, status="reuse", iterations=0,
-                      solve_time=0.0, fallback=False)
+                      solve_time=0.0, fallback=False, solves=0, linearization_error=0.0)
         if replan:
             self._flush_learning()
             record.update(self._replan(x))
@@ -515,20 +589,23 @@ class PseudospectralMPC:
         if self._ocp is None or theta.size != self._theta_size:
             self._build(theta.size)
         assert self._ocp is not None
-        p = np.concatenate([self.model.param_vector, theta])
+        if self._linearized:
+            p = np.asarray(self.model.param_vector, float)
+        else:
+            p = np.concatenate([self.model.param_vector, theta])
         if self._plan is not None:
             elapsed = (self._step - self._plan.step) * self.model.dt
             guess = self._aligned_guess(self._plan.solution.shift(elapsed), x)
         else:
             guess = self._goal_guess(x)
-        sol = self._ocp.solve(p=p, x0=x, initial_guess=guess)
-        self.n_solves += 1
+        sol, info = self._solve(p, x, guess)
         usable = sol.success and np.all(np.isfinite(sol.u))
         if not usable and self._plan is not None:
             # the warm start may be what misled the solver: retry once from a fresh guess
-            retry = self._ocp.solve(p=p, x0=x, initial_guess=self._goal_guess(x))
-            self.n_solves += 1
+            retry, retry_info = self._solve(p, x, self._goal_guess(x))
             self.n_retries += 1
+            info = {key: info[key] + retry_info[key] if key != "linearization_error"
+                    else retry_info[key] for key in info}
             if retry.success and np.all(np.isfinite(retry.u)):
                 sol, usable = retry, True
         fallback = False
@@ -548,8 +625,67 @@ class PseudospectralMPC:
                 fallback = True
                 self.n_fallbacks += 1
         return dict(replanned=True, success=bool(sol.success), status=sol.status,
-                    iterations=int(sol.iterations), solve_time=float(sol.solve_time),
-                    fallback=fallback)
+                    iterations=info["iterations"], solve_time=info["solve_time"],
+                    fallback=fallback, solves=info["solves"],
+                    linearization_error=info["linearization_error"])
+
+    def _solve(self, p: np.ndarray, x: np.ndarray, guess: Any
+               ) -> tuple[OCPSolution, dict[str, Any]]:
+        """One solve, or the re-linearization loop of ``learned_dynamics="linearized"``.
+
+        Returns:
+            The last solution and ``iterations``, ``solve_time`` (summed over the solves),
+            ``solves`` and ``linearization_error`` (the accepted plan's largest expansion error
+            relative to its tolerance, <= 1 when accepted; 0 in exact mode).
+        """
+        assert self._ocp is not None
+        if not self._linearized:
+            sol = self._ocp.solve(p=p, x0=x, initial_guess=guess)
+            self.n_solves += 1
+            return sol, dict(iterations=int(sol.iterations), solve_time=float(sol.solve_time),
+                             solves=1, linearization_error=0.0)
+        t_nodes = self._ocp.node_times()
+        expansion = self._expand(guess.state(t_nodes), guess.control(t_nodes))
+        iterations, solve_time, error = 0, 0.0, np.inf
+        for solves in range(1, self.max_linearizations + 1):
+            sol = self._ocp.solve(p=p, x0=x, initial_guess=guess,
+                                  node_params=expansion["node_params"])
+            self.n_solves += 1
+            iterations += int(sol.iterations)
+            solve_time += float(sol.solve_time)
+            if not (np.all(np.isfinite(sol.x)) and np.all(np.isfinite(sol.u))):
+                break
+            X, U = sol.state(t_nodes), sol.u
+            mean = self.learner.predict(self.residual.inputs(X, U))
+            error = _expansion_error(expansion, np.hstack([X, U]), mean, self.linearization_tol)
+            if not sol.success or error <= 1.0 or solves == self.max_linearizations:
+                break
+            expansion, guess = self._expand(X, U), sol
+        return sol, dict(iterations=iterations, solve_time=solve_time, solves=solves,
+                         linearization_error=float(error))
+
+    def _expand(self, X: np.ndarray, U: np.ndarray) -> dict[str, np.ndarray]:
+        """The residual's first-order expansion about node states X (M, n), controls U (M, m).
+
+        Returns:
+            ``mean`` (M, d_out), ``jacobian`` (M, d_out, n + m), ``points`` (M, n + m) and
+            ``node_params`` (M, n_q): per node ``[c; vec(J_c)]`` with ``c = mean - J [x; u]``
+            and ``J_c`` the columns of ``J`` the learner's input depends on
+            (``residual.jacobian_columns``, column-major ``vec``), then the variances of x and
+            y with frozen uncertainty.
+        """
+        X, U = np.atleast_2d(X), np.atleast_2d(U)
+        M = X.shape[0]
+        mean, jac, var = self.residual.linearize(self.learner, X, U,
+                                                 variance=self._frozen_uncertainty)
+        points = np.hstack([X, U])
+        c = mean - np.einsum("kij,kj->ki", jac, points)
+        cols = list(self.residual.jacobian_columns)
+        blocks = [c, jac[:, :, cols].transpose(0, 2, 1).reshape(M, -1)]
+        if var is not None:
+            unc = self.residual.uncertain_indices
+            blocks.append(var[:, [unc.index(0), unc.index(1)]])
+        return dict(mean=mean, jacobian=jac, points=points, node_params=np.hstack(blocks))
 
     def _goal_guess(self, x: np.ndarray) -> InitialGuess:
         """Cold-start guess: a straight line in state space from ``x`` to the task's goal.
@@ -638,8 +774,9 @@ class PseudospectralMPC:
         """Per-step diagnostics as arrays (for ``np.savez_compressed`` and plots).
 
         Returns:
-            dict of arrays of length T (steps): ``replanned, success, iterations, solve_time,
-            act_time, fallback, learner_samples, action (T, m)`` and ``status`` (strings), and
+            dict of arrays of length T (steps): ``replanned, success, iterations, solves,
+            linearization_error, solve_time, act_time, fallback, learner_samples, action (T,
+            m)`` and ``status`` (strings), and
             the predicted trajectories ``plan_t (T, N)``, ``plan_x (T, N, n)``.
         """
         d = self.diagnostics
@@ -651,6 +788,8 @@ class PseudospectralMPC:
             "success": np.array([r.success for r in d]),
             "status": np.array([r.status for r in d]),
             "iterations": np.array([r.iterations for r in d]),
+            "solves": np.array([r.solves for r in d]),
+            "linearization_error": np.array([r.linearization_error for r in d]),
             "solve_time": np.array([r.solve_time for r in d]),
             "act_time": np.array([r.act_time for r in d]),
             "fallback": np.array([r.fallback for r in d]),
@@ -677,6 +816,24 @@ class _ConstantPlan:
 
     def shift(self, dt: float) -> InitialGuess:
         return self._guess
+
+
+def _expansion_error(expansion: Mapping[str, np.ndarray], points: np.ndarray, mean: np.ndarray,
+                     rtol: float, atol: float = 1e-3) -> float:
+    """Largest error of ``expansion`` at the plan's nodes, as a fraction of its tolerance.
+
+    Args:
+        expansion: from :meth:`PseudospectralMPC._expand`.
+        points: (M, n + m) the plan's node states and controls.
+        mean: (M, d_out) the learned residual there.
+        rtol, atol: per output j, the tolerance is ``rtol * max_k |mean_j| + atol`` (units of
+            the residual, a state rate).
+    """
+    dz = points - expansion["points"]
+    predicted = expansion["mean"] + np.einsum("kij,kj->ki", expansion["jacobian"], dz)
+    err = np.max(np.abs(mean - predicted), axis=0)
+    tol = rtol * np.max(np.abs(mean), axis=0) + atol
+    return float(np.max(err / tol))
 
 
 def _stack_ragged(arrays: list[np.ndarray]) -> np.ndarray:

@@ -67,6 +67,13 @@ class ResidualModel:
         x = ca.SX.sym("x", n)
         u = ca.SX.sym("u", model.n_controls)
         self._features_fn = ca.Function("phi", [x, u], [self.features(x, u)])
+        z = self.features(x, u)
+        dz = ca.jacobian(z, ca.vertcat(x, u))
+        self._features_jac_fn = ca.Function("phi_jac", [x, u], [z, dz])
+        self._mapped: dict[tuple[str, int], ca.Function] = {}
+        self.jacobian_columns = tuple(sorted({int(c) for c in dz.sparsity().get_col()}))
+        """Columns of ``[x; u]`` the learner's input depends on (where the residual's Jacobian
+        can be nonzero)."""
         self.n_inputs = int(self._features_fn.size1_out(0))
         self.n_outputs = len(self.uncertain_indices)
         self.selector = np.zeros((n, self.n_outputs))
@@ -126,7 +133,14 @@ class ResidualModel:
         U = np.atleast_2d(np.asarray(U, float))
         if X.shape[0] == 1:
             return np.asarray(self._features_fn(X[0], U[0])).reshape(1, -1)
-        return np.asarray(self._features_fn.map(X.shape[0])(X.T, U.T)).T
+        return np.asarray(self._map(self._features_fn, X.shape[0])(X.T, U.T)).T
+
+    def _map(self, fn: ca.Function, n: int) -> ca.Function:
+        """``fn.map(n)``, built once per size (building a map costs more than evaluating it)."""
+        key = (fn.name(), n)
+        if key not in self._mapped:
+            self._mapped[key] = fn.map(n)
+        return self._mapped[key]
 
     # ------------------------------------------------------------------ targets
     def targets(self, X: np.ndarray, U: np.ndarray, X_next: np.ndarray
@@ -191,3 +205,34 @@ class ResidualModel:
                                                                             theta))
 
         return f
+
+    def linearize(self, learner: Any, X: np.ndarray, U: np.ndarray, variance: bool = False
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """The learned residual's value and Jacobian in ``(x, u)`` at given points.
+
+        ``mean(phi(x, u)) ~ mean(phi(xb, ub)) + J [x - xb; u - ub]``: the first-order model the
+        MPC's ``learned_dynamics="linearized"`` mode plans with. Computed with the learner's own
+        numeric ``predict`` and ``predict_gradient`` and the chain rule through the input map
+        ``phi`` (whose Jacobian CasADi differentiates), for all points at once.
+
+        Args:
+            learner: a fitted learner (``predict``, ``predict_gradient``).
+            X: (M, n) states. U: (M, m) controls.
+            variance: also return the predictive variance (noise included).
+
+        Returns:
+            mean (M, d_out), J (M, d_out, n + m), and the variance (M, d_out) or None.
+        """
+        X = np.atleast_2d(np.asarray(X, float))
+        U = np.atleast_2d(np.asarray(U, float))
+        M = X.shape[0]
+        Z, dZ = self._map(self._features_jac_fn, M)(X.T, U.T)
+        Z = np.asarray(Z).T
+        dZ = np.asarray(dZ).reshape(self.n_inputs, M, -1).transpose(1, 0, 2)  # (M, d_in, n+m)
+        if variance:
+            mean, std = learner.predict(Z, return_std=True)
+            var = np.asarray(std) ** 2
+        else:
+            mean, var = learner.predict(Z), None
+        grad = learner.predict_gradient(Z)  # (M, d_out, d_in)
+        return np.asarray(mean), np.einsum("kid,kdj->kij", grad, dZ), var

@@ -117,6 +117,84 @@ def test_nominal_hessian_gives_the_exact_hessians_plan():
     np.testing.assert_allclose(plans["nominal"], plans["exact"], atol=1e-6)
 
 
+@pytest.mark.parametrize("env_id", [CART, QUAD])
+def test_residual_linearization_matches_finite_differences(env_id):
+    """ResidualModel.linearize: the learner's mean and its (x, u) Jacobian through the input
+    map (sin/cos of angles), against central differences of predict(inputs(x, u))."""
+    env = gym.make(env_id)
+    data = collect_initial_data(env, 100, seed=0)
+    res = ResidualModel(env.unwrapped.nominal_model)
+    learner = online_ssgp(20).fit(*res.targets(data.X, data.U, data.X_next))
+    X, U = data.X[::25], data.U[::25]
+    mean, J, var = res.linearize(learner, X, U, variance=True)
+    np.testing.assert_allclose(mean, learner.predict(res.inputs(X, U)), atol=1e-12)
+    np.testing.assert_allclose(var, learner.predict(res.inputs(X, U), return_std=True)[1] ** 2,
+                               rtol=1e-10)
+    n, eps = X.shape[1], 1e-6
+    for j in range(n + U.shape[1]):
+        Xp, Xm, Up, Um = X.copy(), X.copy(), U.copy(), U.copy()
+        if j < n:
+            Xp[:, j] += eps
+            Xm[:, j] -= eps
+        else:
+            Up[:, j - n] += eps
+            Um[:, j - n] -= eps
+        fd = (learner.predict(res.inputs(Xp, Up)) - learner.predict(res.inputs(Xm, Um))) / (2 * eps)
+        np.testing.assert_allclose(J[:, :, j], fd, atol=1e-6 * (1 + np.abs(fd).max()))
+    assert set(res.jacobian_columns) == set(range(n + U.shape[1]))
+    quad = ResidualModel(gym.make(QUAD).unwrapped.nominal_model, input_indices="model")
+    assert 0 not in quad.jacobian_columns  # the position is not a learner input
+
+
+def test_relinearized_plan_is_the_exact_plan():
+    """A fixed point of the re-linearization loop is a KKT point of the exact OCP: started
+    from the exact plan, the linearized solve stays on it (learned_dynamics docstring)."""
+    env = gym.make(CART, scenario="online")
+    data = collect_initial_data(env, 200, seed=0)
+    obs, _ = env.reset(seed=0)
+    exact = PseudospectralMPC.from_env(env, online_ssgp()).pretrain(data)
+    exact.act(obs)
+    sol = exact._plan.solution
+    assert sol.success
+    lin = PseudospectralMPC.from_env(env, exact.learner, learned_dynamics="linearized",
+                                     max_linearizations=5, linearization_tol=1e-9)
+    lin._build(0)
+    plan, info = lin._solve(np.asarray(lin.model.param_vector, float), obs, sol)
+    assert plan.success and info["solves"] >= 1
+    np.testing.assert_allclose(plan.x, sol.x, atol=1e-5)
+    np.testing.assert_allclose(plan.u, sol.u, atol=1e-4)
+    assert info["linearization_error"] < 1.0
+    # from a poor reference the first-order model is off, and the diagnostic says so
+    rough = PseudospectralMPC.from_env(env, exact.learner, learned_dynamics="linearized")
+    rough.act(obs)
+    assert rough.diagnostics[-1].solves == 1
+    assert rough.diagnostics[-1].linearization_error > 0.0
+
+
+def test_linearized_nlp_has_no_learner_parameters_and_is_built_once():
+    env = gym.make(DUBINS)
+    data = collect_initial_data(env, 100, seed=0)
+    obs, _ = env.reset(seed=0)
+    agent = PseudospectralMPC.from_env(env, online_ssgp(20), learned_dynamics="linearized",
+                                       uncertainty_radius=1.0).pretrain(data)
+    for _ in range(3):
+        action = agent.act(obs)
+        nxt, *_ = env.step(action)
+        agent.observe(obs, action, nxt)
+        obs = nxt
+    assert agent.n_builds == 1
+    problem = agent._ocp.problem
+    assert problem.n_params == len(agent.model.param_names)
+    d, cols = agent.residual.n_outputs, agent.residual.jacobian_columns
+    assert problem.n_node_params == d * (1 + len(cols)) + 2  # + frozen variances of x, y
+    diag = agent.diagnostics_arrays()
+    assert np.all(diag["solves"] == 1) and np.all(np.isfinite(diag["linearization_error"]))
+    with pytest.raises(ValueError, match="learned_dynamics"):
+        PseudospectralMPC.from_env(env, learned_dynamics="taylor")
+    with pytest.raises(ValueError, match="max_linearizations"):
+        PseudospectralMPC.from_env(env, max_linearizations=0)
+
+
 # ------------------------------------------------------------------------ agent contract
 def test_act_returns_float32_in_bounds_and_rejects_bad_observations():
     env = gym.make(CART)
@@ -265,6 +343,15 @@ def test_ssgp_mpc_swings_up_the_damped_cart_pole(seed):
     agent = PseudospectralMPC.from_env(env, online_ssgp())
     agent.pretrain(collect_initial_data(env, 200, seed=seed))
     _, _, info = run_episode(env, agent, seed=seed)
+    assert info["success"]
+
+
+@pytest.mark.slow
+def test_linearized_ssgp_mpc_swings_up_the_damped_cart_pole():
+    env = gym.make(CART, scenario="online")
+    agent = PseudospectralMPC.from_env(env, online_ssgp(), learned_dynamics="linearized")
+    agent.pretrain(collect_initial_data(env, 200, seed=0))
+    _, _, info = run_episode(env, agent, seed=0)
     assert info["success"]
 
 

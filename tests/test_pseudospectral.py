@@ -476,3 +476,29 @@ def test_casadi_function_dynamics_and_sqpmethod() -> None:
 def test_jit_compiled_solver_matches() -> None:
     sol = GaussPseudospectralSolver(hager_problem(), n_nodes=10, jit=True).solve()
     assert sol.success and abs(sol.cost - HAGER_J) < 1e-9
+
+
+def test_node_parameters_time_varying_dynamics() -> None:
+    """Per-node parameters q_k = t_k give ydot = u + t: min 1/2 int_0^1 u^2 dt with y(0) = 0,
+    y(1) = 1 has the constant optimum u* = 1 - int_0^1 t dt = 1/2 and J* = 1/8."""
+    problem = OptimalControlProblem(
+        n_states=1, n_controls=1, n_node_params=1,
+        dynamics=lambda x, u, p, q: u + q, running_cost=lambda x, u: 0.5 * u**2,
+        t0=0.0, tf=1.0, x0=[0.0], xf=[1.0])
+    solver = GaussPseudospectralSolver(problem, n_nodes=6)
+    t = solver.node_times()
+    sol = solver.solve(node_params=t[:, None])
+    assert sol.success
+    assert abs(sol.cost - 0.125) < 1e-10
+    np.testing.assert_allclose(sol.u.ravel(), 0.5, atol=1e-8)
+    np.testing.assert_allclose(sol.state(t).ravel(), 0.5 * t + 0.5 * t**2, atol=1e-8)
+    # a constant q = 0.5 at every node gives the same cost, another q another one
+    assert abs(solver.solve(node_params=np.full(t.size, 0.5)).cost - 0.125) < 1e-10
+    assert abs(solver.solve(node_params=np.zeros(t.size)).cost - 0.5) < 1e-10
+    with pytest.raises(ValueError, match="node_params"):
+        solver.solve()
+    with pytest.raises(ValueError, match="node_params"):
+        solver.solve(node_params=np.zeros((t.size + 1, 1)))
+    with pytest.raises(ValueError, match="NaN"):
+        solver.solve(node_params=np.full((t.size, 1), np.nan))
+

@@ -12,6 +12,9 @@ The initial time ``t0`` is fixed.
 
 ``p`` is a user-declared parameter vector of fixed size ``n_params`` (goal, learned-model
 weights, obstacle data, ...). It becomes an NLP *parameter*: changing it does not rebuild the NLP.
+``q`` (size ``n_node_params``) is a parameter vector with one value per collocation node: the
+dynamics, running cost and path constraints at node ``k`` see ``q_k`` (e.g. a model linearized
+about a previous trajectory, one linearization per node). It is an NLP parameter too.
 
 The callables receive CasADi symbols (SX, or MX if SX evaluation fails) and must return CasADi
 expressions; a :class:`casadi.Function` works too. Trailing arguments may be omitted: a
@@ -122,7 +125,7 @@ class ProblemFunctions:
     """CasADi functions of an :class:`OptimalControlProblem` (built by ``functions()``).
 
     Attributes:
-        node: ``(x (n,), u (m,), p (n_p,)) -> (xdot (n,), L (1,), c (n_c,))``.
+        node: ``(x (n,), u (m,), p (n_p,), q (n_q,)) -> (xdot (n,), L (1,), c (n_c,))``.
         node_hessian: the same with the problem's ``hessian_dynamics`` in place of its
             ``dynamics``, or None if it has none.
         boundary: ``(x0 (n,), xf (n,), tf (1,), p (n_p,)) -> (Phi (1,), b (n_b,))``.
@@ -147,9 +150,13 @@ class OptimalControlProblem:
     Attributes:
         n_states: state dimension n.
         n_controls: control dimension m.
-        dynamics: ``f(x (n,), u (m,), p (n_p,)) -> xdot (n,)``; ``f(x, u)`` also accepted.
+        dynamics: ``f(x (n,), u (m,), p (n_p,)) -> xdot (n,)``; ``f(x, u)`` also accepted, and
+            ``f(x, u, p, q)`` with per-node parameters ``q (n_q,)``.
         n_params: size n_p of the parameter vector p (0: no parameters).
-        running_cost: Lagrange integrand ``L(x, u, p) -> scalar``, cost per unit time, or None.
+        n_node_params: size n_q of the per-node parameter vector q (0: none). Its value is an
+            (M, n_q) array, one row per collocation node, given at every solve.
+        running_cost: Lagrange integrand ``L(x, u, p[, q]) -> scalar``, cost per unit time, or
+            None.
         terminal_cost: Mayer term ``Phi(x0 (n,), xf (n,), tf (scalar), p) -> scalar``, or None.
         t0: initial time (fixed).
         tf: final time if fixed; None for a free final time (then ``tf_bounds`` apply).
@@ -163,7 +170,8 @@ class OptimalControlProblem:
         x0_lb, x0_ub: bounds on x(t0) (default: the state bounds).
         xf: fixed terminal state (n,); shortcut for ``xf_lb = xf_ub = xf``.
         xf_lb, xf_ub: bounds on x(tf), intersected with the state bounds.
-        path_constraints: ``c(x, u, p) -> (n_c,)`` enforced at every collocation node, or None.
+        path_constraints: ``c(x, u, p[, q]) -> (n_c,)`` enforced at every collocation node, or
+            None.
         path_lb, path_ub: bounds on c, scalar or (n_c,) (default: ``c <= 0`` like paper eq. PC,
             i.e. lb = -inf, ub = 0).
         boundary_constraints: ``b(x0, xf, tf, p) -> (n_b,)``, or None.
@@ -181,6 +189,7 @@ class OptimalControlProblem:
     n_controls: int
     dynamics: SymbolicFn
     n_params: int = 0
+    n_node_params: int = 0
     running_cost: SymbolicFn | None = None
     terminal_cost: SymbolicFn | None = None
     t0: float = 0.0
@@ -207,7 +216,7 @@ class OptimalControlProblem:
     _functions: ProblemFunctions | None = field(default=None, init=False, repr=False)
 
     def __post_init__(self) -> None:
-        for name in ("n_states", "n_controls", "n_params"):
+        for name in ("n_states", "n_controls", "n_params", "n_node_params"):
             val = getattr(self, name)
             if isinstance(val, bool) or not isinstance(val, (int, np.integer)) or val < 0:
                 raise ValueError(f"{name} must be a non-negative integer, got {val!r}")
@@ -310,20 +319,21 @@ class OptimalControlProblem:
     def _build(self, sym: type) -> ProblemFunctions:
         n, m, n_p = self.n_states, self.n_controls, self.n_params
         x, u, p = sym.sym("x", n), sym.sym("u", m), sym.sym("p", n_p)
+        q = sym.sym("q", self.n_node_params)
         x0, xf, tf = sym.sym("x0", n), sym.sym("xf", n), sym.sym("tf")
 
-        xdot = _as_column(_call(self.dynamics, "dynamics", [x, u, p], 2), sym, "dynamics")
+        xdot = _as_column(_call(self.dynamics, "dynamics", [x, u, p, q], 2), sym, "dynamics")
         if xdot.shape != (n, 1):
             raise ValueError(f"dynamics must return shape ({n},), got {xdot.shape}")
         xdot_h = None
         if self.hessian_dynamics is not None:
-            xdot_h = _as_column(_call(self.hessian_dynamics, "hessian_dynamics", [x, u, p], 2),
+            xdot_h = _as_column(_call(self.hessian_dynamics, "hessian_dynamics", [x, u, p, q], 2),
                                 sym, "hessian_dynamics")
             if xdot_h.shape != (n, 1):
                 raise ValueError(f"hessian_dynamics must return shape ({n},), got {xdot_h.shape}")
         if self.running_cost is not None:
             lag = _as_column(
-                _call(self.running_cost, "running_cost", [x, u, p], 2), sym, "running_cost"
+                _call(self.running_cost, "running_cost", [x, u, p, q], 2), sym, "running_cost"
             )
         else:
             lag = sym(1, 1)
@@ -331,7 +341,7 @@ class OptimalControlProblem:
             raise ValueError(f"running_cost must return a scalar, got shape {lag.shape}")
         if self.path_constraints is not None:
             c = _as_column(
-                _call(self.path_constraints, "path_constraints", [x, u, p], 2),
+                _call(self.path_constraints, "path_constraints", [x, u, p, q], 2),
                 sym,
                 "path_constraints",
             )
@@ -356,12 +366,12 @@ class OptimalControlProblem:
         else:
             b = sym(0, 1)
         node = ca.Function(
-            "gpm_node", [x, u, p], [xdot, lag, c], ["x", "u", "p"], ["xdot", "L", "c"]
+            "gpm_node", [x, u, p, q], [xdot, lag, c], ["x", "u", "p", "q"], ["xdot", "L", "c"]
         )
         node_hessian = None
         if xdot_h is not None:
-            node_hessian = ca.Function("gpm_node_hessian", [x, u, p], [xdot_h, lag, c],
-                                       ["x", "u", "p"], ["xdot", "L", "c"])
+            node_hessian = ca.Function("gpm_node_hessian", [x, u, p, q], [xdot_h, lag, c],
+                                       ["x", "u", "p", "q"], ["xdot", "L", "c"])
         boundary = ca.Function(
             "gpm_boundary", [x0, xf, tf, p], [phi, b], ["x0", "xf", "tf", "p"], ["Phi", "b"]
         )

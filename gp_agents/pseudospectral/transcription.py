@@ -287,7 +287,11 @@ class GaussPseudospectralSolver:
 
         X = ca.MX.sym("X", n, N)
         U = ca.MX.sym("U", m, M)
-        P = ca.MX.sym("p", n_p)
+        n_q = pb.n_node_params
+        # NLP parameter: [p; vec(Q)] with Q (n_q, M) the per-node parameters, node k's contiguous
+        P_all = ca.MX.sym("p", n_p + n_q * M)
+        P = P_all[:n_p]
+        Q = ca.reshape(P_all[n_p:], n_q, M)
         if pb.free_final_time:
             tf_sym = ca.MX.sym("tf")
             tf_expr: ca.MX = tf_sym
@@ -320,7 +324,7 @@ class GaussPseudospectralSolver:
         def transcribe(node: ca.Function) -> tuple[ca.MX, ca.MX]:
             """Cost and constraints with dynamics, running cost and path constraints evaluated
             at all M nodes through one mapped call of ``node``."""
-            F, L, C = node.map(M)(X[:, node_cols], U, ca.repmat(P, 1, M))
+            F, L, C = node.map(M)(X[:, node_cols], U, ca.repmat(P, 1, M), Q)
             hF = F * ca.repmat(h_row, n, 1)  # (n, M): h_s f at the nodes
             defects = ca.mtimes(X, D_big) - hF  # paper eq. (AC)
             quadrature = X[:, end_cols] - X[:, start_cols] - ca.mtimes(hF, W_big)  # eq. (QC)
@@ -350,7 +354,7 @@ class GaussPseudospectralSolver:
         self._lbg = np.concatenate([zeros, np.tile(pb.path_lb, M), pb.boundary_lb])
         self._ubg = np.concatenate([zeros, np.tile(pb.path_ub, M), pb.boundary_ub])
 
-        nlp = {"x": w, "p": P, "f": cost, "g": g}
+        nlp = {"x": w, "p": P_all, "f": cost, "g": g}
         opts = dict(self.solver_options)
         opts.setdefault("expand", self.expand)
         if fns.node_hessian is not None and "hess_lag" not in opts:
@@ -360,7 +364,7 @@ class GaussPseudospectralSolver:
             lam_f, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", g.shape[0])
             lagrangian = lam_f * cost_h + ca.dot(lam_g, g_h)
             hess = ca.triu(ca.hessian(lagrangian, w)[0])
-            hess_lag = ca.Function("gpm_hess_lag", [w, P, lam_f, lam_g], [hess],
+            hess_lag = ca.Function("gpm_hess_lag", [w, P_all, lam_f, lam_g], [hess],
                                    ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])
             opts["hess_lag"] = hess_lag.expand() if self.expand else hess_lag
         self._solver = ca.nlpsol("gpm_nlp", self.solver_name, nlp, opts)
@@ -413,6 +417,7 @@ class GaussPseudospectralSolver:
         x0: ArrayLike | None = None,
         initial_guess: OCPSolution | InitialGuess | TrajectoryLike | None = None,
         warm_start_multipliers: bool = True,
+        node_params: ArrayLike | None = None,
     ) -> OCPSolution:
         """Solve the NLP for one parameter value.
 
@@ -431,6 +436,8 @@ class GaussPseudospectralSolver:
                 or any object with ``state(t)``, ``control(t)`` and ``tf``.
             warm_start_multipliers: pass the multipliers of a previous solution of this solver as
                 ``lam_x0`` / ``lam_g0`` (used by IPOPT only with ``warm_start_init_point yes``).
+            node_params: (M, n_q) per-node parameters, row k for the collocation node at
+                ``node_times()[k]``; required iff the problem declares ``n_node_params > 0``.
 
         Returns:
             The solution.
@@ -450,6 +457,18 @@ class GaussPseudospectralSolver:
                 raise ValueError(f"p must have {pb.n_params} entries, got {p_arr.size}")
             if not np.all(np.isfinite(p_arr)):
                 raise ValueError(f"p contains NaN or inf: {p_arr}")
+        n_q, M = pb.n_node_params, self.n_collocation
+        if node_params is None:
+            if n_q:
+                raise ValueError(f"this problem declares n_node_params={n_q}: pass node_params")
+            q_arr = np.zeros(0)
+        else:
+            q_arr = np.asarray(node_params, dtype=float)
+            if q_arr.shape != (M, n_q) and not (n_q == 1 and q_arr.shape == (M,)):
+                raise ValueError(f"node_params must have shape ({M}, {n_q}), got {q_arr.shape}")
+            if not np.all(np.isfinite(q_arr)):
+                raise ValueError("node_params contains NaN or inf")
+            q_arr = q_arr.ravel()
         x0_arr: FloatArray | None = None
         if x0 is not None:
             x0_arr = np.asarray(x0, dtype=float).ravel()
@@ -463,7 +482,8 @@ class GaussPseudospectralSolver:
             lbx[:n] = x0_arr
             ubx[:n] = x0_arr
 
-        args: dict[str, Any] = {"p": p_arr, "lbg": self._lbg, "ubg": self._ubg}
+        args: dict[str, Any] = {"p": np.concatenate([p_arr, q_arr]), "lbg": self._lbg,
+                                "ubg": self._ubg}
         if (
             isinstance(initial_guess, OCPSolution)
             and initial_guess.structure == self._structure
