@@ -4,7 +4,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 export OMP_NUM_THREADS ?= 1
 
-.PHONY: bench bench-full test throughput clean
+.PHONY: bench bench-full bench-linearized test throughput clean
 
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -21,6 +21,10 @@ bench: $(VENV)/.installed
 bench-full: $(VENV)/.installed  # every experiment (350 trials, ~15 min on 2 cores)
 	$(PY) -m benchmarks --preset full --workers 2
 	$(PY) -m benchmarks.update_readme full full/dubins full/mpc-acceptance
+
+bench-linearized: $(VENV)/.installed  # the linearized SSGP-MPC's acceptance runs (~12 min)
+	$(PY) -m benchmarks --preset linearized --workers 2
+	$(PY) -m benchmarks.update_readme linearized
 
 test: $(VENV)/.installed
 	$(PY) -m ruff check .

@@ -502,7 +502,7 @@ def compute_rows(trials: Iterable[Trial]) -> list[dict[str, Any]]:
     rows = []
     for t in trials:
         if t.spec.kind in ("ssgp-act-scaling", "ssgp-update-time") and t.ok:
-            rows.append({"measurement": t.spec.kind, "env": t.spec.env,
+            rows.append({"key": t.spec.key, "measurement": t.spec.kind, "env": t.spec.env,
                          "scenario": t.spec.scenario, "controller": t.spec.controller,
                          "seed": t.spec.seed, "param": t.spec.param, **t.metrics})
     return rows
@@ -548,10 +548,7 @@ def section_scaling(ctx: Context, exp: Experiment) -> list[str]:
 
 
 def _row_key(row: dict[str, Any]) -> str:
-    default = "ssgp-mpc" if row["measurement"] == "ssgp-act-scaling" else "ssgp"
-    controller = row.get("controller") or default
-    return TrialSpec(row["measurement"], row["env"], row["scenario"], controller,
-                     row["seed"], param=row["param"]).key
+    return str(row["key"])
 
 
 def section_update_time(ctx: Context, exp: Experiment) -> list[str]:
@@ -668,7 +665,32 @@ def section_acceptance(ctx: Context, exp: Experiment) -> list[str]:
                          f"{round(r['success_rate'] * r['episodes'])}/{r['episodes']}, "
                          f"episodes touching the obstacle {r['episodes_with_violation']}, "
                          f"{speed('dubins', 'paper', c, r)}")
-    return lines
+    return lines + _linearization_errors(ctx, exp)
+
+
+def _linearization_errors(ctx: Context, exp: Experiment) -> list[str]:
+    """How far the linearized recipes' per-node expansions were off at their plans."""
+    groups: dict[tuple[str, str, str], list[np.ndarray]] = defaultdict(list)
+    for t in ctx.of(exp):
+        if t.spec.kind != "episode" or not t.ok or "diag_linearization_error" not in t.arrays:
+            continue
+        if CONTROLLERS.get(t.spec.controller) is None or ("learned_dynamics", "linearized") \
+                not in CONTROLLERS[t.spec.controller].settings:
+            continue
+        err = t.arrays["diag_linearization_error"][t.arrays["diag_replanned"].astype(bool)]
+        groups[(t.spec.env, t.spec.scenario, t.spec.controller)].append(err)
+    if not groups:
+        return []
+    rows = []
+    for (env, scenario, c), errs in groups.items():
+        e = np.concatenate(errs)
+        rows.append([f"{env} `{scenario}`", _label(c), e.size, float(np.median(e)),
+                     float(np.percentile(e, 90)), float(np.mean(e > 1.0))])
+    table = markdown_table(["env", "controller", "solves", "median", "p90", "share > 1"], rows,
+                           ["---", "---", "---:", "---:", "---:", "---:"])
+    return ["", "Linearized recipes: error of the per-node expansion at the plan it produced, "
+            "as a fraction of its tolerance (10% of the largest residual over the nodes plus "
+            "1e-3, per output; <= 1 is within it), over all solves:", "", *table]
 
 
 SECTIONS: dict[str, SectionFn] = {

@@ -160,3 +160,17 @@ def test_a_trial_exceeding_the_memory_limit_is_an_error_not_a_crash(tmp_path: Pa
     summary = run_trials([spec], tmp_path, workers=1, progress=False, max_memory_gb=0.05)
     assert summary.ran == {spec.key: "error"}
     assert not is_finished(tmp_path, spec)
+
+
+def test_linearized_preset_reports_speed_ratios_expansion_errors_and_scaling(
+        tmp_path: Path) -> None:
+    argv = ["--preset", "linearized", "--envs", "quadrotor", "--scenarios", "gp", "--seeds", "0",
+            "--controllers", "nominal-mpc,ssgp-mpc-linearized", "--max-steps", "3",
+            "--workers", "0", "--no-progress", "--out", str(tmp_path)]
+    assert main(argv) == 0
+    report = (tmp_path / "report.md").read_text()
+    assert "SSGP MPC, linearized" in report
+    assert "the nominal MPC's (target 1.5x:" in report  # the ratio, computed in the same run
+    assert "error of the per-node expansion" in report
+    assert "| quadrotor | gp | SSGP MPC, linearized | 5000 |" in report  # samples learned
+    assert (tmp_path / "linearized_ssgp_act_scaling.png").is_file()
