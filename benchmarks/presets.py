@@ -225,19 +225,21 @@ def linearized(seeds: Sequence[int] = tuple(range(10)),
 
 def quick() -> Experiment:
     """A couple of minutes: the main controllers on every env, one or two seeds."""
-    specs = episodes(("nominal-mpc", "gp-mpc", "ssgp-mpc", "oracle-mpc", "sac"),
+    ssgp = ("ssgp-mpc", "ssgp-mpc-linearized")
+    specs = episodes(("nominal-mpc", "gp-mpc", *ssgp, "oracle-mpc", "sac"),
                      [("cartpole", "online")], (0, 1))
-    specs += episodes(("nominal-mpc", "ssgp-mpc", "oracle-mpc", "ppo"), [("quadrotor", "online")],
+    specs += episodes(("nominal-mpc", *ssgp, "oracle-mpc", "ppo"), [("quadrotor", "online")],
                       (0,))
-    specs += episodes(("nominal-mpc", "ssgp-mpc", "oracle-mpc", "ppo"), [("dubins", "paper")],
+    specs += episodes(("nominal-mpc", *ssgp, "oracle-mpc", "ppo"), [("dubins", "paper")],
                       (0, 1))
     specs += tuple(TrialSpec("ssgp-update-time", "cartpole", "online", "ssgp", 0, param=r)
                    for r in (25, 50, 100))
     specs += (TrialSpec("peers", "cartpole", "gp", "ps-vs-do-mpc", 0),)
     return Experiment(
         "quick", "Quick comparison",
-        "Nominal, offline-GP, SSGP and oracle MPC and the shipped SAC policy on the cart pole "
-        "(`online`, seeds 0-1); nominal, SSGP and oracle MPC and PPO on the quadrotor "
+        "Nominal, offline-GP, SSGP (GP in the NLP, and linearized per node) and oracle MPC and "
+        "the shipped SAC policy on the cart pole (`online`, seeds 0-1); nominal, both SSGP and "
+        "oracle MPC and PPO on the quadrotor "
         "(`online`, seed 0) and the Dubins vehicle (seeds 0-1); SSGP update time for r = 25, "
         "50, 100; one episode each of this project's MPC and do-mpc (if installed).",
         specs, ("summary", "trajectories", "paths", "step_times", "sample_efficiency",

@@ -684,8 +684,13 @@ def _linearization_errors(ctx: Context, exp: Experiment) -> list[str]:
     rows = []
     for (env, scenario, c), errs in groups.items():
         e = np.concatenate(errs)
+        e = e[np.isfinite(e)]  # NaN: a solve that gave no finite plan to check
+        if not e.size:
+            continue
         rows.append([f"{env} `{scenario}`", _label(c), e.size, float(np.median(e)),
                      float(np.percentile(e, 90)), float(np.mean(e > 1.0))])
+    if not rows:
+        return []
     table = markdown_table(["env", "controller", "solves", "median", "p90", "share > 1"], rows,
                            ["---", "---", "---:", "---:", "---:", "---:"])
     return ["", "Linearized recipes: error of the per-node expansion at the plan it produced, "

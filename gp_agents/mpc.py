@@ -112,8 +112,9 @@ class StepRecord:
         plan_x: (N, n) the current plan's states (the predicted trajectory).
         action: (m,) the applied action.
         solves: NLP solves in this call (retries and re-linearizations included).
-        linearization_error: with ``learned_dynamics="linearized"``, the accepted plan's
-            largest expansion error as a fraction of its tolerance (0 otherwise).
+        linearization_error: with ``learned_dynamics="linearized"``, the plan's largest
+            expansion error as a fraction of its tolerance (NaN if the solve gave no finite
+            plan; 0 otherwise).
     """
 
     step: int
@@ -434,7 +435,8 @@ class PseudospectralMPC:
                     f"x {residual.n_inputs} inputs x {self.n_nodes * self.n_intervals} nodes) > "
                     f"MAX_LEARNED_MODEL_SIZE = {MAX_LEARNED_MODEL_SIZE:.2g}; its derivatives "
                     "would not fit in memory. Use fewer nodes (n_nodes, n_intervals), "
-                    "fewer training points or an SSGP.")
+                    "fewer training points, an SSGP, or learned_dynamics='linearized' (the "
+                    "learner then stays outside the NLP).")
         k = len(model.param_names)
         f_param = model.casadi_parametric_function()
         task = model.task
@@ -635,8 +637,8 @@ class PseudospectralMPC:
 
         Returns:
             The last solution and ``iterations``, ``solve_time`` (summed over the solves),
-            ``solves`` and ``linearization_error`` (the accepted plan's largest expansion error
-            relative to its tolerance, <= 1 when accepted; 0 in exact mode).
+            ``solves`` and ``linearization_error`` (the last plan's largest expansion error
+            relative to its tolerance; 0 in exact mode, NaN if no finite plan came out).
         """
         assert self._ocp is not None
         if not self._linearized:
@@ -646,7 +648,7 @@ class PseudospectralMPC:
                              solves=1, linearization_error=0.0)
         t_nodes = self._ocp.node_times()
         expansion = self._expand(guess.state(t_nodes), guess.control(t_nodes))
-        iterations, solve_time, error = 0, 0.0, np.inf
+        iterations, solve_time, error = 0, 0.0, np.nan  # nan: no finite plan to check
         for solves in range(1, self.max_linearizations + 1):
             sol = self._ocp.solve(p=p, x0=x, initial_guess=guess,
                                   node_params=expansion["node_params"])
