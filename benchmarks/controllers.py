@@ -124,30 +124,33 @@ def _mpc_recipes() -> dict[str, ControllerRecipe]:
     return out
 
 
-SPEED_VARIANTS: dict[str, ControllerRecipe] = {
-    "ssgp-mpc-nominal-hessian": ControllerRecipe(
-        "ssgp-mpc-nominal-hessian", "SSGP MPC, nominal Hessian", "mpc",
-        "ssgp-mpc with the GP's second derivatives dropped from the Lagrangian Hessian "
-        "(hessian='nominal')", learner="ssgp", learn_online=True,
-        settings=(("hessian", "nominal"),)),
-    "ssgp-mpc-model-inputs": ControllerRecipe(
-        "ssgp-mpc-model-inputs", "SSGP MPC, model inputs", "mpc",
-        "ssgp-mpc whose learner sees only the states the nominal model's accelerations depend "
-        "on (input_indices='model')", learner="ssgp", learn_online=True,
-        settings=(("input_indices", "model"),)),
-    "ssgp-mpc-linearized": ControllerRecipe(
-        "ssgp-mpc-linearized", "SSGP MPC, linearized", "mpc",
-        "ssgp-mpc planning with the GP residual linearized per node about the warm start "
-        "(learned_dynamics='linearized')", learner="ssgp", learn_online=True,
-        settings=(("learned_dynamics", "linearized"),)),
-    "ssgp-mpc-linearized-model-inputs": ControllerRecipe(
-        "ssgp-mpc-linearized-model-inputs", "SSGP MPC, linearized, model inputs", "mpc",
-        "ssgp-mpc-linearized whose learner sees only the states the nominal model's "
-        "accelerations depend on (input_indices='model')", learner="ssgp", learn_online=True,
-        settings=(("learned_dynamics", "linearized"), ("input_indices", "model"))),
-}
+def _ssgp_variant(suffix: str, label: str, description: str, **settings: Any
+                  ) -> tuple[str, ControllerRecipe]:
+    """``ssgp-mpc-<suffix>``: the online SSGP-MPC with extra :class:`PseudospectralMPC`
+    settings."""
+    name = f"ssgp-mpc-{suffix}"
+    return name, ControllerRecipe(name, f"SSGP MPC, {label}", "mpc", description,
+                                  learner="ssgp", learn_online=True,
+                                  settings=tuple(settings.items()))
+
+
+SPEED_VARIANTS: dict[str, ControllerRecipe] = dict([
+    _ssgp_variant("nominal-hessian", "nominal Hessian",
+                  "ssgp-mpc with the GP's second derivatives dropped from the Lagrangian "
+                  "Hessian (hessian='nominal')", hessian="nominal"),
+    _ssgp_variant("model-inputs", "model inputs",
+                  "ssgp-mpc whose learner sees only the states the nominal model's "
+                  "accelerations depend on (input_indices='model')", input_indices="model"),
+    _ssgp_variant("linearized", "linearized",
+                  "ssgp-mpc planning with the GP residual linearized per node about the warm "
+                  "start (learned_dynamics='linearized')", learned_dynamics="linearized"),
+    _ssgp_variant("linearized-model-inputs", "linearized, model inputs",
+                  "ssgp-mpc-linearized whose learner sees only the states the nominal model's "
+                  "accelerations depend on (input_indices='model')",
+                  learned_dynamics="linearized", input_indices="model"),
+])
 """Variants of ``ssgp-mpc`` that trade exactness or generality for speed (issue: the SSGP-MPC's
-step time), compared by the ``speed-options`` preset."""
+step time), compared by the ``speed-options`` and ``linearized`` presets."""
 
 
 CONTROLLERS: dict[str, ControllerRecipe] = {
