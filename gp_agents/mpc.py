@@ -657,7 +657,7 @@ class PseudospectralMPC:
             solve_time += float(sol.solve_time)
             if not (np.all(np.isfinite(sol.x)) and np.all(np.isfinite(sol.u))):
                 break
-            X, U = sol.state(t_nodes), sol.u
+            X, U = sol.x_nodes, sol.u
             mean = self.learner.predict(self.residual.inputs(X, U))
             error = _expansion_error(expansion, np.hstack([X, U]), mean, self.linearization_tol)
             if not sol.success or error <= 1.0 or solves == self.max_linearizations:

@@ -87,8 +87,14 @@ class ResidualModel:
         sel = ca.DM(self.selector)
         stepped = rk4(lambda xx: f_nom(xx, u) + ca.mtimes(sel, r), x, model.dt, model.substeps)
         mismatch = (stepped - x_next)[list(self.uncertain_indices)]
-        self._newton_fn = ca.Function("newton", [x, u, x_next, r],
-                                      [mismatch, ca.jacobian(mismatch, r)])
+        newton = ca.Function("newton", [x, u, x_next, r], [mismatch, ca.jacobian(mismatch, r)])
+        # the target: the finite difference, then two Newton steps, all in one function
+        y = -newton(x, u, x_next, ca.DM.zeros(self.n_outputs))[0] / model.dt
+        for _ in range(2):
+            g, J = newton(x, u, x_next, y)
+            y = y - ca.solve(J, g)
+        self._target_fn = ca.Function("target", [x, u, x_next],
+                                      [self.features(0.5 * (x + x_next), u), y])
 
     @staticmethod
     def model_inputs(model: ControlModel, uncertain_indices: Sequence[int]) -> tuple[int, ...]:
@@ -169,13 +175,11 @@ class ResidualModel:
             if not np.all(np.isfinite(arr)):
                 raise ValueError(f"{name} contains NaN or inf")
         X_next = self.unwrap_like(X_next, X)
-        predicted = np.atleast_2d(self.model.step(X, U))
-        Y = (X_next - predicted)[:, self.uncertain_indices] / self.model.dt
-        for i in range(X.shape[0]):
-            for _ in range(2):
-                g, J = self._newton_fn(X[i], U[i], X_next[i], Y[i])
-                Y[i] -= np.linalg.solve(np.asarray(J), np.asarray(g).ravel())
-        Z = self.inputs(0.5 * (X + X_next), U)
+        Z, Y = self._map(self._target_fn, X.shape[0])(X.T, U.T, X_next.T)
+        Z, Y = np.asarray(Z).T.reshape(-1, self.n_inputs), np.asarray(Y).T
+        if not np.all(np.isfinite(Y)):
+            raise ValueError("residual targets are not finite (a transition the nominal model "
+                             "cannot reproduce with any constant residual?)")
         return Z, Y
 
     def unwrap_like(self, X: np.ndarray, reference: np.ndarray) -> np.ndarray:

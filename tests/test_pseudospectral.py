@@ -216,6 +216,8 @@ def test_hager_multiple_intervals() -> None:
     np.testing.assert_allclose(sol.costate[:, 0], -hager_control(sol.t_nodes), atol=1e-6)
     t = np.linspace(0, 1, 41)
     np.testing.assert_allclose(sol.state(t)[:, 0], hager_state(t), atol=1e-7)
+    np.testing.assert_allclose(sol.x_nodes, sol.state(sol.t_nodes), atol=1e-12)
+    np.testing.assert_allclose(sol.x_nodes[:, 0], hager_state(sol.t_nodes), atol=1e-8)
 
 
 def test_shift_solution_holds_beyond_horizon() -> None:

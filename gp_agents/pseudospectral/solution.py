@@ -172,6 +172,14 @@ class OCPSolution:
         return int(self.interval_times.size - 1)
 
     @property
+    def x_nodes(self) -> FloatArray:
+        """States at the collocation nodes ``t_nodes`` (support points 1..K of each interval),
+        shape (M, n): the points where the dynamics were enforced."""
+        K = self.n_nodes
+        rows = [s * (K + 1) + k for s in range(self.n_intervals) for k in range(1, K + 1)]
+        return self.x[rows].copy()
+
+    @property
     def x_final(self) -> FloatArray:
         """Terminal state X_f, shape (n,)."""
         return self.x[-1].copy()
