@@ -229,7 +229,11 @@ class ResidualModel:
         """
         X = np.atleast_2d(np.asarray(X, float))
         U = np.atleast_2d(np.asarray(U, float))
-        M = X.shape[0]
+        M, n, m = X.shape[0], self.model.n_states, self.model.n_controls
+        if X.shape != (M, n) or U.shape != (M, m):
+            raise ValueError(f"expected X (M, {n}) and U (M, {m}), got {X.shape}, {U.shape}")
+        if not (np.all(np.isfinite(X)) and np.all(np.isfinite(U))):
+            raise ValueError("linearize got a non-finite state or control")
         Z, dZ = self._map(self._features_jac_fn, M)(X.T, U.T)
         Z = np.asarray(Z).T
         dZ = np.asarray(dZ).reshape(self.n_inputs, M, -1).transpose(1, 0, 2)  # (M, d_in, n+m)

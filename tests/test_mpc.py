@@ -142,6 +142,10 @@ def test_residual_linearization_matches_finite_differences(env_id):
         fd = (learner.predict(res.inputs(Xp, Up)) - learner.predict(res.inputs(Xm, Um))) / (2 * eps)
         np.testing.assert_allclose(J[:, :, j], fd, atol=1e-6 * (1 + np.abs(fd).max()))
     assert set(res.jacobian_columns) == set(range(n + U.shape[1]))
+    with pytest.raises(ValueError, match="expected X"):
+        res.linearize(learner, X[:, :-1], U)
+    with pytest.raises(ValueError, match="non-finite"):
+        res.linearize(learner, np.full_like(X, np.nan), U)
     quad = ResidualModel(gym.make(QUAD).unwrapped.nominal_model, input_indices="model")
     assert 0 not in quad.jacobian_columns  # the position is not a learner input
 
