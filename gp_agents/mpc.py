@@ -211,9 +211,9 @@ class PseudospectralMPC:
             (:meth:`ResidualModel.linearize`), passed as per-node NLP parameters; the
             uncertainty radius, if any, is frozen at the reference too. The reference is the
             warm start (the previous plan shifted in time), as in a real-time iteration: the
-            NLP then has the nominal model's structure and costs about what the nominal one
-            does, and the learner is evaluated once per node per solve instead of once per
-            node per IPOPT iteration with its second derivatives. After each solve the
+            NLP then has the nominal model's Hessian and only a denser Jacobian, and the
+            learner is evaluated once per node per solve instead of once per node per IPOPT
+            iteration with its second derivatives. After each solve the
             residual is evaluated at the plan's nodes; the expansion's largest error there, as
             a fraction of ``linearization_tol`` (relative to the largest residual over the
             nodes, per output, plus an absolute 1e-3), is recorded
