@@ -22,7 +22,7 @@ bench-full: $(VENV)/.installed  # every experiment (350 trials, ~15 min on 2 cor
 	$(PY) -m benchmarks --preset full --workers 2
 	$(PY) -m benchmarks.update_readme full full/dubins full/mpc-acceptance
 
-bench-linearized: $(VENV)/.installed  # the linearized SSGP-MPC's acceptance runs (~12 min)
+bench-linearized: $(VENV)/.installed  # the linearized SSGP-MPC's acceptance runs (~9 min on 2 cores)
 	$(PY) -m benchmarks --preset linearized --workers 2
 	$(PY) -m benchmarks.update_readme linearized
 
