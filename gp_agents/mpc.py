@@ -90,6 +90,10 @@ the NLP's derivatives). Measured on this project's recipes: the SSGP quadrotor p
 whole episode (2.3e7) builds in ~1 GB; the exact GP on 200 points over the same plan (1.2e8)
 exhausted 24 GB of memory while CasADi generated the constraint Jacobian, expanded or not."""
 
+COLD_START_LINEARIZATIONS = 5
+"""Solves a linearized agent may take from a cold start (the goal guess): the expansion about a
+straight line can be far off, and the plan it gives is the reference of every later step."""
+
 _PERIOD_QUADRATURE = np.polynomial.legendre.leggauss(5)
 """Gauss-Legendre rule for the period mean of the control (exact to degree 9)."""
 
@@ -218,12 +222,16 @@ class PseudospectralMPC:
             a fraction of ``linearization_tol`` (relative to the largest residual over the
             nodes, per output, plus an absolute 1e-3), is recorded
             (``diagnostics_arrays()["linearization_error"]``). With ``max_linearizations`` >
-            1, a plan whose error exceeds 1 is re-linearized about itself and re-solved, up to
-            that many solves per replan. A fixed point of that loop is a KKT point of the exact
+            1, a plan whose error exceeds 1 (or a failed solve's finite last iterate) is
+            re-linearized about and re-solved, up to that many solves per replan; from a cold
+            start (the first solve of an episode, or the retry from the goal guess) up to
+            :data:`COLD_START_LINEARIZATIONS`, since an expansion about a straight line can
+            make the NLP infeasible. A fixed point of that loop is a KKT point of the exact
             problem (model values and first derivatives agree there;
             ``tests/test_mpc.py`` checks it). No effect without a learner.
         max_linearizations: solves per replan in ``"linearized"`` mode (>= 1; default 1, one
-            linearization about the warm start per control period).
+            linearization about the warm start per control period; cold starts may take up
+            to ``COLD_START_LINEARIZATIONS``).
         linearization_tol: relative tolerance of the expansion (see ``learned_dynamics``).
     """
 
@@ -600,11 +608,11 @@ class PseudospectralMPC:
             guess = self._aligned_guess(self._plan.solution.shift(elapsed), x)
         else:
             guess = self._goal_guess(x)
-        sol, info = self._solve(p, x, guess)
+        sol, info = self._solve(p, x, guess, cold=self._plan is None)
         usable = sol.success and np.all(np.isfinite(sol.u))
         if not usable and self._plan is not None:
             # the warm start may be what misled the solver: retry once from a fresh guess
-            retry, retry_info = self._solve(p, x, self._goal_guess(x))
+            retry, retry_info = self._solve(p, x, self._goal_guess(x), cold=True)
             self.n_retries += 1
             info = {key: info[key] + retry_info[key] if key != "linearization_error"
                     else retry_info[key] for key in info}
@@ -631,9 +639,15 @@ class PseudospectralMPC:
                     fallback=fallback, solves=info["solves"],
                     linearization_error=info["linearization_error"])
 
-    def _solve(self, p: np.ndarray, x: np.ndarray, guess: Any
+    def _solve(self, p: np.ndarray, x: np.ndarray, guess: Any, cold: bool = False
                ) -> tuple[OCPSolution, dict[str, Any]]:
         """One solve, or the re-linearization loop of ``learned_dynamics="linearized"``.
+
+        In that loop a plan whose expansion error exceeds 1, or a failed solve whose last
+        iterate is finite, is re-linearized about and re-solved while solves remain:
+        ``max_linearizations`` of them, at least :data:`COLD_START_LINEARIZATIONS` when
+        ``cold`` (the reference is the straight-line goal guess, not a previous plan; an
+        expansion about it can make the NLP infeasible).
 
         Returns:
             The last solution and ``iterations``, ``solve_time`` (summed over the solves),
@@ -649,7 +663,8 @@ class PseudospectralMPC:
         t_nodes = self._ocp.node_times()
         expansion = self._expand(guess.state(t_nodes), guess.control(t_nodes))
         iterations, solve_time, error = 0, 0.0, np.nan  # nan: no finite plan to check
-        for solves in range(1, self.max_linearizations + 1):
+        limit = max(self.max_linearizations, COLD_START_LINEARIZATIONS if cold else 1)
+        for solves in range(1, limit + 1):
             sol = self._ocp.solve(p=p, x0=x, initial_guess=guess,
                                   node_params=expansion["node_params"])
             self.n_solves += 1
@@ -660,7 +675,7 @@ class PseudospectralMPC:
             X, U = sol.x_nodes, sol.u
             mean = self.learner.predict(self.residual.inputs(X, U))
             error = _expansion_error(expansion, np.hstack([X, U]), mean, self.linearization_tol)
-            if not sol.success or error <= 1.0 or solves == self.max_linearizations:
+            if (sol.success and error <= 1.0) or solves == limit:
                 break
             expansion, guess = self._expand(X, U), sol
         return sol, dict(iterations=iterations, solve_time=solve_time, solves=solves,
