@@ -8,7 +8,8 @@ the episode's nominal model; for the Dubins scenario that model is redrawn at ev
 
 =================  ======================================================================
 nominal-mpc        nominal physics only, receding horizon
-oracle-mpc         the true model (``from_env(env, oracle=True)``): an upper bound
+oracle-mpc         the true model (``model_source=lambda: gp_envs.oracle_model(env)``): an
+                   upper bound; the benchmark hands the truth in, the agent never looks
 gp-mpc             nominal + :class:`ExactGP` fitted once on the initial data, no online learning
 ssgp-mpc           nominal + :func:`gp_agents.online_ssgp` (``IncrementalSSGP(50,
                    forgetting_factor=0.995)``, own-likelihood hyperparameters with a
@@ -34,7 +35,8 @@ from typing import Any
 
 import gymnasium as gym
 
-import gp_envs  # noqa: F401  (registers the envs)
+import gp_envs
+from gp_agents.mpc import GPInNLP
 
 MODELS_DIR = Path(__file__).resolve().parent / "models"
 """Where the shipped RL policies live: ``<env short name>/<algo>/``."""
@@ -137,7 +139,8 @@ def _ssgp_variant(suffix: str, label: str, description: str, **settings: Any
 SPEED_VARIANTS: dict[str, ControllerRecipe] = dict([
     _ssgp_variant("nominal-hessian", "nominal Hessian",
                   "ssgp-mpc with the GP's second derivatives dropped from the Lagrangian "
-                  "Hessian (hessian='nominal')", hessian="nominal"),
+                  "Hessian (learned_dynamics=GPInNLP(hessian='nominal'))",
+                  learned_dynamics=GPInNLP(hessian="nominal")),
     _ssgp_variant("model-inputs", "model inputs",
                   "ssgp-mpc whose learner sees only the states the nominal model's "
                   "accelerations depend on (input_indices='model')", input_indices="model"),
@@ -255,14 +258,14 @@ def build_controller(name: str, env: gym.Env, env_name: str, seed: int,
         data = collect_initial_data(env, n_init, seed=seed)
     obs, _ = env.reset(seed=seed)
     learner = make_learner(recipe.learner) if recipe.learner is not None else None
-    agent = PseudospectralMPC.from_env(env, learner, oracle=recipe.oracle, mode=recipe.mode,
+    source = (lambda: gp_envs.oracle_model(env)) if recipe.oracle else None
+    agent = PseudospectralMPC.from_env(env, learner, model_source=source, mode=recipe.mode,
                                        learn_online=recipe.learn_online, **dict(recipe.settings))
     if data is not None:
         agent.pretrain(data)
     agent.reset()
     return BuiltController(agent, obs, len(data) if data is not None else 0,
-                           {"horizon_s": agent.horizon, "n_nodes": agent.n_nodes,
-                            "n_intervals": agent.n_intervals})
+                           {"horizon_s": agent.horizon, "mesh": agent.mesh.describe()})
 
 
 def _build_rl(recipe: ControllerRecipe, env: gym.Env, env_name: str, seed: int

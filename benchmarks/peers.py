@@ -16,9 +16,11 @@ back to back in the same process:
 
 Discretization: do-mpc's own default, orthogonal collocation on finite elements with
 ``t_step = dt`` (the control period, piecewise-constant controls) and Radau collocation of degree
-2, i.e. 30 intervals x 2 collocation points over the 1.5 s horizon; the pseudospectral MPC uses
-16 Legendre-Gauss nodes in one interval. Both warm-start from their previous solution (do-mpc
-does so automatically; its first guess is the initial state everywhere, as documented).
+2, i.e. 30 intervals x 2 collocation points over the 1.5 s horizon. The pseudospectral MPC holds
+its first period's control too (the action it sends is a decision of its plan,
+:mod:`gp_agents.mpc.ocp`): one held period of 3 LG nodes, then 16 LG nodes with polynomial
+control over the remaining 1.45 s. Both warm-start from their previous solution (do-mpc does so
+automatically; its first guess is the initial state everywhere, as documented).
 
 The per-step time is the wall-clock time of one ``act`` (``make_step`` for do-mpc), so it
 includes each library's Python overhead; the time of the solver call alone is recorded too.
@@ -36,6 +38,7 @@ import numpy as np
 
 from benchmarks.controllers import ControllerUnavailableError, make_env
 from benchmarks.trial import TrialSpec
+from gp_agents.agent import rollout
 
 STATE_MARGIN = 0.05
 """Same default as :class:`gp_agents.PseudospectralMPC` ``state_margin``."""
@@ -100,18 +103,22 @@ class DoMPCController:
         self.solve_times: list[float] = []
         self.n_failures = 0
 
-    def reset(self, obs: np.ndarray) -> None:
-        """Start an episode at ``obs`` (sets do-mpc's initial guess to it)."""
-        self._prev = np.asarray(obs, float).copy()
-        self.mpc.x0 = self._prev.reshape(-1, 1)
-        self.mpc.set_initial_guess()
+    def reset(self) -> None:
+        """Start an episode: the first ``act`` sets do-mpc's initial guess to its state."""
+        self._prev = None
         self.solve_times = []
         self.n_failures = 0
+
+    def observe(self, obs: np.ndarray, action: np.ndarray, next_obs: np.ndarray) -> None:
+        """Nothing to learn (the :class:`gp_agents.Agent` interface)."""
 
     def act(self, obs: np.ndarray) -> np.ndarray:
         """(m,) float32 action; angles are unwrapped to be continuous with the last call's."""
         x = np.asarray(obs, float).copy()
-        if self._prev is not None:
+        if self._prev is None:  # first call of the episode: do-mpc's documented initial guess
+            self.mpc.x0 = x.reshape(-1, 1)
+            self.mpc.set_initial_guess()
+        else:
             for i in self.model.angle_indices:
                 x[i] += 2 * np.pi * np.round((self._prev[i] - x[i]) / (2 * np.pi))
         self._prev = x
@@ -123,23 +130,11 @@ class DoMPCController:
         return np.clip(u, self.model.u_lb, self.model.u_ub).astype(np.float32)
 
 
-def _episode(env: Any, agent: Any, seed: int, reset: Any) -> dict[str, Any]:
-    obs, _ = env.reset(seed=seed)
-    reset(obs)
-    act_times, rewards, states = [], [], [np.asarray(obs, float)]
-    info: dict[str, Any] = {"success": False}
-    while True:
-        t0 = time.perf_counter()
-        action = agent.act(obs)
-        act_times.append(time.perf_counter() - t0)
-        obs, reward, terminated, truncated, info = env.step(action)
-        rewards.append(float(reward))
-        states.append(np.asarray(obs, float))
-        if terminated or truncated:
-            break
-    return {"act": np.array(act_times), "cost": -float(np.sum(rewards)),
-            "success": bool(info["success"]), "obs": np.array(states),
-            "termination": info.get("termination_reason") or "time limit"}
+def _episode(env: Any, agent: Any, seed: int) -> dict[str, Any]:
+    ep = rollout(env, agent, seed)
+    return {"act": ep.act_times, "cost": ep.cost, "success": ep.success,
+            "obs": ep.observations,
+            "termination": ep.final_info.get("termination_reason") or "time limit"}
 
 
 def run_peers(spec: TrialSpec) -> dict[str, Any]:
@@ -156,17 +151,14 @@ def run_peers(spec: TrialSpec) -> dict[str, Any]:
         warnings.simplefilter("ignore")
         peer = DoMPCController(model, horizon)
 
-        def ps_reset(obs: np.ndarray) -> None:
-            ps.reset()
-
-        ours = _episode(env, ps, spec.seed, ps_reset)
-        theirs = _episode(env, peer, spec.seed, peer.reset)
+        ours = _episode(env, ps, spec.seed)
+        theirs = _episode(env, peer, spec.seed)
     ps_solve = np.array([r.solve_time for r in ps.diagnostics if r.replanned])
     med_ours, med_theirs = float(np.median(ours["act"])), float(np.median(theirs["act"]))
-    n_ps_vars = int(ps._ocp.n_variables) if ps._ocp is not None else -1
+    n_ps_vars = int(ps.planner.ocp.n_variables) if ps.planner is not None else -1
     metrics = {
         "horizon_s": horizon,
-        "ps_nodes": f"{ps.n_nodes} LG nodes x {ps.n_intervals} interval(s)",
+        "ps_nodes": ps.mesh.describe(),
         "dompc_discretization": f"{peer.n_horizon} intervals x Radau degree {COLLOCATION_DEG}",
         "ps_nlp_variables": n_ps_vars,
         "dompc_nlp_variables": peer.n_variables,

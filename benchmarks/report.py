@@ -41,16 +41,20 @@ from benchmarks.trial import STATUS_OK, STATUS_UNAVAILABLE, TrialSpec
 
 METRIC_COLUMNS = (
     "key", "env", "scenario", "controller", "family", "mode", "seed", "status", "success",
-    "time_to_success_s", "cost", "final_distance", "final_position_error", "violations",
-    "termination", "steps", "data_steps", "act_median_ms", "act_p95_ms", "act_max_ms",
-    "solver_failures", "fallbacks", "solves", "build_s", "episode_s", "max_steps", "message",
+    "success_held", "at_goal_final", "time_to_success_s", "cost", "final_distance",
+    "final_position_error", "violations", "termination", "steps", "data_steps",
+    "act_median_ms", "act_p95_ms", "act_max_ms", "solver_failures", "fallbacks", "solves",
+    "capped_solves", "plan_plant_defect", "build_s", "episode_s", "max_steps", "message",
 )
+TIME_COLUMNS = ("act_median_ms", "act_p95_ms", "act_max_ms", "build_s", "episode_s")
+"""The columns of ``metrics.csv`` that are wall-clock times: the only ones a run's machine load
+may change (the controllers are capped by iterations, never by time)."""
 SUMMARY_COLUMNS = (
     "experiment", "env", "scenario", "controller", "label", "status", "episodes", "success_rate",
     "cost_mean", "cost_std", "cost_median", "time_to_success_mean_s", "final_distance_mean",
     "final_position_error_mean", "final_position_error_max", "violations_total",
     "episodes_with_violation", "data_steps_mean", "act_median_ms", "act_p95_ms", "act_max_ms",
-    "solver_failures", "fallbacks",
+    "solver_failures", "fallbacks", "success_held_rate", "plan_plant_defect_max",
 )
 PACKAGES = ("gp-pseudospectral-mpc", "numpy", "scipy", "casadi", "gymnasium", "matplotlib",
             "torch", "stable-baselines3", "do-mpc", "dask", "distributed", "tqdm")
@@ -212,6 +216,9 @@ def summarize(experiment: str, trials: Sequence[Trial]) -> list[dict[str, Any]]:
             "controller": controller, "label": _label(controller), "status": status,
             "episodes": len(ok),
             "success_rate": _mean([float(x["success"]) for x in m]),
+            "success_held_rate": _mean([float(x.get("success_held", x["success"])) for x in m]),
+            "plan_plant_defect_max": max([x.get("plan_plant_defect", math.nan) for x in m],
+                                         default=math.nan),
             "cost_mean": _mean(costs), "cost_std": float(costs.std()) if costs.size else math.nan,
             "cost_median": float(np.median(costs)) if costs.size else math.nan,
             "time_to_success_mean_s": _mean([x["time_to_success_s"] for x in m]),
@@ -291,12 +298,18 @@ def section_summary(ctx: Context, exp: Experiment) -> list[str]:
 
 
 def section_paper_tables(ctx: Context, exp: Experiment) -> list[str]:
-    """The paper's tables: cost and success per model, episodic vs MPC, per scenario."""
+    """The paper's tables: cost and success per model, episodic vs MPC, per scenario.
+
+    Episodic plans are scored at the plan's final time (the paper's reading: an open-loop plan
+    of an unstable system cannot hold the goal for long), with the env's held criterion beside
+    it; receding-horizon MPC by the held criterion. Each cell gives the final distance too.
+    """
     by = {(r["env"], r["scenario"], r["controller"]): r for r in ctx.summaries[exp.name]}
     lines: list[str] = []
     for number, scenario in ((1, "gp"), (2, "online")):
         lines += ["", f"**Table {number}** (scenario `{scenario}`): cumulative cost, mean over "
-                  "seeds (success rate)", ""]
+                  "seeds; success rate (episodic: at the plan's final time / held for the "
+                  "task's hold time; MPC: held); mean final distance to the goal", ""]
         body = []
         for env in ("cartpole", "quadrotor"):
             for base in MPC_BASES:
@@ -304,13 +317,27 @@ def section_paper_tables(ctx: Context, exp: Experiment) -> list[str]:
                 for mode in ("episodic", "mpc"):
                     r = by.get((env, scenario, f"{base}-{mode}"))
                     if r is None or not r["episodes"]:
-                        cells.append("not run" if r is None else r["status"])
-                    else:
-                        cells.append(f"{_fmt(r['cost_mean'])} ({_fmt(r['success_rate'])})")
+                        cells += ["not run" if r is None else r["status"], "", ""]
+                        continue
+                    success = _fmt(r["success_rate"])
+                    if mode == "episodic":
+                        success += f" / {_fmt(r['success_held_rate'])}"
+                    cells += [_fmt(r["cost_mean"]), success, _fmt(r["final_distance_mean"], 3)]
                 label = CONTROLLERS[f"{base}-mpc"].label.replace(" MPC", "")
                 body.append([env, label, *cells])
-        lines += markdown_table(["env", "model", "episodic", "MPC"], body,
-                                ["---", "---", "---:", "---:"])
+        lines += markdown_table(
+            ["env", "model", "episodic cost", "episodic success (final / held)",
+             "episodic final distance", "MPC cost", "MPC success", "MPC final distance"],
+            body, ["---", "---", "---:", "---:", "---:", "---:", "---:", "---:"])
+    defects = [(r["env"], r["scenario"], r["plan_plant_defect_max"])
+               for r in ctx.summaries[exp.name]
+               if r["controller"] == "oracle-episodic" and r["episodes"]]
+    if defects:
+        worst = ", ".join(f"{e} `{sc}` {d:.1e}" for e, sc, d in defects)
+        lines += ["", "One-period defect of the oracle's episodic plan against the plant (the "
+                  "plan's state at each period's end minus the plant's RK4 step from its state "
+                  f"at the period's start under the plan's action, largest over periods and "
+                  f"seeds, max-norm): {worst}."]
     return lines
 
 
@@ -734,12 +761,20 @@ def _git_commit() -> str:
         return "unknown"
 
 
-def _code_versions(trials: Iterable[Any]) -> str:
+def _record_counts(trials: Iterable[Any], key: str) -> str:
+    """``"value (trials), ..."`` of a trial-record field (e.g. the code version, the CPU)."""
     counts: dict[str, int] = defaultdict(int)
     for t in trials:
         if t.record is not None:
-            counts[str(t.record.get("code_version", "not recorded"))] += 1
+            counts[str(t.record.get(key, "not recorded"))] += 1
     return ", ".join(f"{v} ({n})" for v, n in sorted(counts.items()))
+
+
+def _capped(trials: Iterable[Any]) -> str:
+    capped = [int(t.metrics.get("capped_solves", 0) or 0) for t in trials
+              if t.ok and t.spec.kind == "episode"]
+    return (f"{sum(capped)} in {sum(c > 0 for c in capped)} of {len(capped)} episode(s)"
+            if capped else "no episodes")
 
 
 def write_report(out_dir: Path, preset: Preset, command: str,
@@ -793,8 +828,11 @@ def write_report(out_dir: Path, preset: Preset, command: str,
     lines += [f"- machine: {platform.machine()}, {os.cpu_count()} CPU(s) (shared), "
               f"OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', 'unset')}, "
               f"{platform.platform(terse=True)}",
+              f"- CPU model, trials: {_record_counts(all_trials, 'cpu')}",
+              f"- solves that hit the iteration cap (the only cap; no wall-clock limit): "
+              f"{_capped(all_trials)}",
               f"- git commit: {_git_commit()}; trials by code version: "
-              f"{_code_versions(all_trials)}; written "
+              f"{_record_counts(all_trials, 'code_version')}; written "
               f"{_dt.datetime.now(_dt.UTC).strftime('%Y-%m-%d %H:%M UTC')}",
               "- versions: " + ", ".join(f"{k} {v}" for k, v in package_versions().items()),
               "", "Tables: `metrics.csv` (one row per episode), `summary.csv` (per experiment and "

@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+import gp_envs
 from benchmarks.controllers import (
     CONTROLLERS,
     N_INITIAL_POINTS,
@@ -33,6 +34,7 @@ from benchmarks.controllers import (
     check_name,
     make_env,
 )
+from gp_agents.agent import rollout
 
 STATUS_OK = "ok"
 STATUS_ERROR = "error"
@@ -103,38 +105,19 @@ def run_episode(spec: TrialSpec) -> dict[str, Any]:
     t_build = time.perf_counter()
     built = build_controller(spec.controller, env, spec.env, spec.seed, spec.n_init)
     build_s = time.perf_counter() - t_build
-    agent, obs = built.agent, built.obs
-    model = env.unwrapped.nominal_model
-    goal = np.asarray(model.task.goal, float)
-    observations, actions, rewards, act_times = [np.asarray(obs, float)], [], [], []
-    successes, violations, times = [], [], []
-    info: dict[str, Any] = {}
-    terminated = truncated = False
+    agent = built.agent
+    goal = np.asarray(env.unwrapped.nominal_model.task.goal, float)
     t_episode = time.perf_counter()
-    while True:
-        t0 = time.perf_counter()
-        action = agent.act(obs)
-        act_times.append(time.perf_counter() - t0)
-        next_obs, reward, terminated, truncated, info = env.step(action)
-        agent.observe(obs, action, next_obs)
-        observations.append(np.asarray(next_obs, float))
-        actions.append(np.asarray(action, float))
-        rewards.append(float(reward))
-        successes.append(bool(info["success"]))
-        violations.append(bool(info["constraint_violation"]))
-        times.append(float(info["time"]))
-        obs = next_obs
-        if terminated or truncated:
-            break
-        if spec.max_steps is not None and len(actions) >= spec.max_steps:
-            break
+    episode = rollout(env, agent, spec.seed, max_steps=spec.max_steps)
     episode_s = time.perf_counter() - t_episode
-    steps = len(actions)
-    success_arr = np.array(successes)
+    observations, info, steps = episode.observations, episode.final_info, episode.steps
+    success_arr = np.array([bool(i["success"]) for i in episode.infos])
+    violations = np.array([bool(i["constraint_violation"]) for i in episode.infos])
+    times = np.array([float(i["time"]) for i in episode.infos])
     first = int(np.argmax(success_arr)) if success_arr.any() else -1
-    if terminated:
+    if episode.terminated:
         termination = info.get("termination_reason") or "terminated"
-    elif truncated:
+    elif episode.truncated:
         termination = "time limit"
     else:
         termination = "max steps"
@@ -143,16 +126,22 @@ def run_episode(spec: TrialSpec) -> dict[str, Any]:
     if spec.env in ("quadrotor", "dubins"):
         k = 3 if spec.env == "quadrotor" else 2
         position_error = float(np.linalg.norm(final[:k] - goal[:k]))
-    act = np.array(act_times)
+    act = episode.act_times
     is_mpc = recipe.family == "mpc"
+    episodic = is_mpc and recipe.mode == "episodic"
+    # episodic plans are scored at the plan's final time (the paper's reading; an open-loop plan
+    # of an unstable system cannot hold the goal), receding ones by the env's held criterion
+    at_goal_final = bool(info.get("at_goal", False))
     learning = recipe.learner is not None
     data_steps = built.prior_data_steps + (steps if is_mpc else 0)
     metrics: dict[str, Any] = {
         "family": recipe.family,
         "mode": recipe.mode if is_mpc else "policy",
-        "success": bool(successes[-1]),
+        "success": at_goal_final if episodic else bool(success_arr[-1]),
+        "success_held": bool(success_arr[-1]),
+        "at_goal_final": at_goal_final,
         "time_to_success_s": times[first] if first >= 0 else float("nan"),
-        "cost": -float(np.sum(rewards)),
+        "cost": episode.cost,
         "final_distance": float(info.get("distance_to_goal", np.nan)),
         "final_position_error": position_error,
         "violations": int(np.sum(violations)),
@@ -164,6 +153,8 @@ def run_episode(spec: TrialSpec) -> dict[str, Any]:
         "act_p95_ms": 1e3 * _percentile(act, 95),
         "act_max_ms": 1e3 * float(act.max()) if act.size else float("nan"),
         "solver_failures": int(getattr(agent, "n_failures", 0)) if is_mpc else float("nan"),
+        "capped_solves": int(getattr(agent, "n_capped", 0)) if is_mpc else float("nan"),
+        "plan_plant_defect": _plan_plant_defect(env, agent) if episodic else float("nan"),
         "fallbacks": int(getattr(agent, "n_fallbacks", 0)) if is_mpc else float("nan"),
         "solves": int(getattr(agent, "n_solves", 0)) if is_mpc else float("nan"),
         "build_s": build_s,
@@ -171,12 +162,12 @@ def run_episode(spec: TrialSpec) -> dict[str, Any]:
         **{f"recipe_{k}": v for k, v in built.info.items()},
     }
     arrays: dict[str, np.ndarray] = {
-        "obs": np.array(observations),
-        "action": np.array(actions),
-        "reward": np.array(rewards),
+        "obs": observations,
+        "action": episode.actions,
+        "reward": episode.rewards,
         "success": success_arr,
-        "constraint_violation": np.array(violations),
-        "time": np.array(times),
+        "constraint_violation": violations,
+        "time": times,
         "act_time": act,
         "goal": goal,
     }
@@ -185,6 +176,27 @@ def run_episode(spec: TrialSpec) -> dict[str, Any]:
             arrays[f"diag_{name}"] = value
     env.close()
     return {"metrics": metrics, "arrays": arrays}
+
+
+def _plan_plant_defect(env: Any, agent: Any) -> float:
+    """Largest one-period defect of an episodic agent's plan against the plant, inf-norm.
+
+    For each period k of the plan: the plan's state at the period's end minus the plant's RK4
+    step (``gp_envs.oracle_model(env).step``, what the env integrates) from the plan's state at
+    its start under the plan's action. For the oracle's plan this measures the transcription
+    alone; for the others it includes their model error.
+    """
+    plan, truth = agent.plan, gp_envs.oracle_model(env)
+    if plan is None:
+        return float("nan")
+    sol, dt = plan.solution, truth.dt
+    periods = round(float(sol.tf) / dt)
+    worst = 0.0
+    for k in range(periods):
+        u = plan.action(plan.step + k, truth.u_lb, truth.u_ub)
+        nxt = truth.step(sol.state(k * dt), u)
+        worst = max(worst, float(np.max(np.abs(sol.state((k + 1) * dt) - nxt))))
+    return worst
 
 
 def _lazy(module: str, function: str) -> Callable[[TrialSpec], dict[str, Any]]:
@@ -204,6 +216,20 @@ JOB_KINDS: dict[str, Callable[[TrialSpec], dict[str, Any]]] = {
     "peers": _lazy("benchmarks.peers", "run_peers"),
 }
 """Trial kinds and the function that runs each."""
+
+
+@functools.cache
+def cpu_model() -> str:
+    """The processor's model name (``/proc/cpuinfo``; ``platform.processor()`` elsewhere)."""
+    import platform
+
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.lower().startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine() or "unknown"
 
 
 @functools.cache
@@ -246,6 +272,7 @@ def execute(spec: TrialSpec) -> dict[str, Any]:
     except Exception:  # recorded: a benchmark run goes on
         out.update(status=STATUS_ERROR, message=traceback.format_exc(limit=20))
     out["host"] = os.uname().nodename
+    out["cpu"] = cpu_model()
     out["code_version"] = code_version()
     out["wall_s"] = time.perf_counter() - start
     return out

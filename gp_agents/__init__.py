@@ -1,5 +1,7 @@
 """Controllers for the ``gp_envs`` environments.
 
+- :class:`Agent` (``reset``, ``act``, ``observe``) and :func:`rollout`, the closed loop every
+  controller here runs in.
 - :class:`PseudospectralMPC`: Gauss pseudospectral MPC on nominal physics plus a learned GP
   residual (the paper's Algorithm 1), built with :meth:`PseudospectralMPC.from_env`.
 - Residual learners: :class:`ExactGP`, :class:`SSGP`, :class:`IncrementalSSGP`.
@@ -15,21 +17,27 @@ from __future__ import annotations
 
 from typing import Any
 
+from gp_agents.agent import Agent, Episode, rollout
 from gp_agents.data import Transitions, collect_initial_data
-from gp_agents.learners import SSGP, ExactGP, IncrementalSSGP
-from gp_agents.mpc import PseudospectralMPC, online_ssgp
+from gp_agents.learners import SSGP, ExactGP, IncrementalSSGP, online_ssgp
+from gp_agents.mpc import GPInNLP, LinearizedGP, PseudospectralMPC
 from gp_agents.residual import ResidualModel
 
 __all__ = [
     "SSGP",
+    "Agent",
+    "Episode",
     "ExactGP",
+    "GPInNLP",
     "IncrementalSSGP",
+    "LinearizedGP",
     "PseudospectralMPC",
     "RLAgent",
     "ResidualModel",
     "Transitions",
     "collect_initial_data",
     "online_ssgp",
+    "rollout",
 ]
 
 

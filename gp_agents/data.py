@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import gymnasium as gym
 import numpy as np
 
+from gp_agents.agent import rollout
 from gp_envs.model import ControlModel
 
 Policy = Callable[[np.ndarray, float], np.ndarray]
@@ -129,23 +130,40 @@ def collect_initial_data(env: gym.Env, n_points: int = 200, seed: int = 0,
     if n_points < 1:
         raise ValueError(f"n_points must be >= 1, got {n_points}")
     rng = np.random.default_rng(seed)
-    span = env.action_space.high - env.action_space.low
     X, U, Xn = [], [], []
     episode = 0
-    while len(X) < n_points:
+    while sum(len(x) for x in X) < n_points:
         options = {"state": _START_STATES[model.name]} if model.name in _START_STATES else None
-        obs, _ = env.reset(seed=seed * 1000 + episode, options=options)
-        model = env.unwrapped.nominal_model
-        policy = _POLICIES[model.name](model, rng)
-        t, done = 0.0, False
-        while not done and len(X) < n_points:
-            action = policy(np.asarray(obs, float), t) + action_noise * span * rng.normal(
-                size=span.shape)
-            action = np.clip(action, env.action_space.low, env.action_space.high)
-            nxt, _, terminated, truncated, _ = env.step(action.astype(np.float32))
-            X.append(np.asarray(obs, float))
-            U.append(action.astype(np.float32).astype(float))
-            Xn.append(np.asarray(nxt, float))
-            obs, t, done = nxt, t + model.dt, terminated or truncated
+        agent = _NoisyTracker(env, rng, action_noise)
+        run = rollout(env, agent, seed * 1000 + episode, options=options,
+                      max_steps=n_points - sum(len(x) for x in X))
+        X.append(run.observations[:-1])
+        U.append(run.actions.astype(np.float32).astype(float))
+        Xn.append(run.observations[1:])
         episode += 1
-    return Transitions(np.array(X), np.array(U), np.array(Xn))
+    return Transitions(np.concatenate(X), np.concatenate(U), np.concatenate(Xn))
+
+
+class _NoisyTracker:
+    """The system's crude tracking controller plus Gaussian action noise, as an
+    :class:`gp_agents.agent.Agent`; its reference is drawn at each reset, for the episode's
+    nominal model."""
+
+    def __init__(self, env: gym.Env, rng: np.random.Generator, noise: float) -> None:
+        self.env, self.rng = env, rng
+        self.span = env.action_space.high - env.action_space.low
+        self.noise = noise
+
+    def reset(self) -> None:
+        model = self.env.unwrapped.nominal_model
+        self.policy, self.dt, self.t = _POLICIES[model.name](model, self.rng), model.dt, 0.0
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        action = self.policy(np.asarray(obs, float), self.t) + self.noise * self.span * (
+            self.rng.normal(size=self.span.shape))
+        self.t += self.dt
+        return np.clip(action, self.env.action_space.low,
+                       self.env.action_space.high).astype(np.float32)
+
+    def observe(self, obs: np.ndarray, action: np.ndarray, next_obs: np.ndarray) -> None:
+        """The tracker does not learn."""

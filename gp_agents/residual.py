@@ -1,4 +1,4 @@
-"""The semi-parametric model's learned part: inputs, targets and the combined dynamics.
+"""The semi-parametric model's learned part: the learner's inputs and targets.
 
 Paper, "Problem Formulation": ``f_t(x, u) = f_p(x, u) + f_err(x, u)``, with ``f_err`` a GP
 whose training targets are ``y = f_t(x, u) - f_p(x, u)``. The true ``f_t`` is never observed,
@@ -34,7 +34,9 @@ from gp_envs.model import ControlModel, rk4
 
 
 class ResidualModel:
-    """Maps between a :class:`ControlModel`, learner inputs/targets, and the combined ODE.
+    """Maps between a :class:`ControlModel` and a learner's inputs and targets.
+
+    The combined ODE the MPC plans with is :class:`gp_agents.mpc.planning_model.PlanningModel`.
 
     Args:
         model: the nominal model the residual corrects.
@@ -189,27 +191,7 @@ class ResidualModel:
             X[..., i] -= 2 * np.pi * np.round((X[..., i] - reference[..., i]) / (2 * np.pi))
         return X
 
-    # ------------------------------------------------------------------ combined dynamics
-    def dynamics(self, learner: Any | None):
-        """The semi-parametric ODE ``f(x, u, theta) = f_nominal(x, u) + S mean(phi(x, u))``.
-
-        Args:
-            learner: a fitted learner exporting ``casadi_mean(z, theta)`` (or None: nominal).
-
-        Returns:
-            A callable of CasADi symbols ``(x (n,), u (m,), theta (P,)) -> xdot (n,)``.
-        """
-        nominal = self.model.casadi_function()
-        if learner is None:
-            return lambda x, u, theta: nominal(x, u)
-        selector = ca.DM(self.selector)
-
-        def f(x: Any, u: Any, theta: Any) -> Any:
-            return nominal(x, u) + ca.mtimes(selector, learner.casadi_mean(self.features(x, u),
-                                                                            theta))
-
-        return f
-
+    # ------------------------------------------------------------------ linearization
     def linearize(self, learner: Any, X: np.ndarray, U: np.ndarray, variance: bool = False
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """The learned residual's value and Jacobian in ``(x, u)`` at given points.

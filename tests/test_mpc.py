@@ -8,10 +8,12 @@ import numpy as np
 import pytest
 
 import gp_agents.mpc as mpc_module
+import gp_agents.mpc.gp_in_nlp as gp_in_nlp_module
 import gp_envs
+from gp_agents.agent import rollout
 from gp_agents.data import collect_initial_data
 from gp_agents.learners import IncrementalSSGP
-from gp_agents.mpc import PseudospectralMPC, online_ssgp
+from gp_agents.mpc import GPInNLP, LinearizedGP, PseudospectralMPC, online_ssgp
 from gp_agents.residual import ResidualModel
 
 CART = "gp_envs/CartPoleSwingUp-v0"
@@ -20,16 +22,13 @@ DUBINS = "gp_envs/DubinsObstacle-v0"
 
 
 def run_episode(env, agent, seed=0):
-    obs, info = env.reset(seed=seed)
-    agent.reset()
-    ret = 0.0
-    while True:
-        action = agent.act(obs)
-        nxt, reward, terminated, truncated, info = env.step(action)
-        agent.observe(obs, action, nxt)
-        obs, ret = nxt, ret + reward
-        if terminated or truncated:
-            return obs, ret, info
+    episode = rollout(env, agent, seed)
+    return episode.observations[-1], -episode.cost, episode.final_info
+
+
+def oracle(env):
+    """The benchmark's way of handing the truth to an upper-bound MPC."""
+    return {"model_source": lambda: gp_envs.oracle_model(env)}
 
 
 # ------------------------------------------------------------------------ residual targets
@@ -70,22 +69,31 @@ def test_residual_targets_reject_bad_input():
         res.targets(np.full((3, 4), np.nan), np.zeros((3, 1)), np.zeros((3, 4)))
 
 
-def test_semiparametric_dynamics_add_the_learner_mean_on_the_accelerations():
+def test_planning_model_adds_the_learner_mean_on_the_accelerations():
+    """The dynamics the agent's OCP is built with: nominal physics plus S mean_GP(phi(x, u)),
+    checked against the nominal model's numeric f and the learner's numeric predict."""
     env = gym.make(CART)
-    res = ResidualModel(env.unwrapped.nominal_model)
-    learner = IncrementalSSGP(20, random_state=0)
+    model = env.unwrapped.nominal_model
+    agent = PseudospectralMPC.from_env(env, IncrementalSSGP(20, random_state=0))
     rng = np.random.default_rng(0)
-    Z = rng.normal(size=(60, res.n_inputs))
-    learner.fit(Z, np.column_stack([np.sin(Z[:, 0]), np.cos(Z[:, 1])]))
-    f = res.dynamics(learner)
+    Z = rng.normal(size=(60, agent.residual.n_inputs))
+    agent.learner.fit(Z, np.column_stack([np.sin(Z[:, 0]), np.cos(Z[:, 1])]))
+    planning = agent._planner().planning
+    assert agent.planner.ocp.problem.dynamics == planning.dynamics  # the formula the NLP uses
     x, u = ca.SX.sym("x", 4), ca.SX.sym("u", 1)
-    theta = ca.SX.sym("theta", learner.casadi_param_size())
-    fn = ca.Function("f", [x, u, theta], [f(x, u, theta)])
+    p = ca.SX.sym("p", planning.n_params)
+    fn = ca.Function("f", [x, u, p], [planning.dynamics(x, u, p, ca.SX(0, 1))])
     xs, us = np.array([0.1, 2.0, -0.3, 1.0]), np.array([3.0])
-    got = np.asarray(fn(xs, us, learner.casadi_param_values())).ravel()
-    expected = env.unwrapped.nominal_model.f(xs, us)
-    expected[[2, 3]] += learner.predict(res.inputs(xs, us))[0]
+    got = np.asarray(fn(xs, us, planning.param_values())).ravel()
+    expected = model.f(xs, us)
+    expected[[2, 3]] += agent.learner.predict(agent.residual.inputs(xs, us))[0]
     np.testing.assert_allclose(got, expected, rtol=1e-10)
+    # the nominal agent's planning model is the physics alone
+    nominal = PseudospectralMPC.from_env(env)._planner().planning
+    fn = ca.Function("f", [x, u, p[:nominal.n_params]],
+                     [nominal.dynamics(x, u, p[:nominal.n_params], ca.SX(0, 1))])
+    np.testing.assert_allclose(np.asarray(fn(xs, us, nominal.param_values())).ravel(),
+                               model.f(xs, us), rtol=1e-12)
 
 
 def test_model_inputs_are_the_states_the_parametric_model_depends_on():
@@ -107,7 +115,8 @@ def test_nominal_hessian_gives_the_exact_hessians_plan():
     data = collect_initial_data(env, 200, seed=0)
     plans = {}
     for hessian in ("exact", "nominal"):
-        agent = PseudospectralMPC.from_env(env, online_ssgp(), hessian=hessian,
+        agent = PseudospectralMPC.from_env(env, online_ssgp(),
+                                           learned_dynamics=GPInNLP(hessian=hessian),
                                            input_indices="model")
         agent.pretrain(data)
         obs, _ = env.reset(seed=0)
@@ -159,12 +168,12 @@ def test_relinearized_plan_is_the_exact_plan():
     obs, _ = env.reset(seed=0)
     exact = PseudospectralMPC.from_env(env, online_ssgp()).pretrain(data)
     exact.act(obs)
-    sol = exact._plan.solution
+    sol = exact.plan.solution
     assert sol.success
-    lin = PseudospectralMPC.from_env(env, exact.learner, learned_dynamics="linearized",
-                                     max_linearizations=5, linearization_tol=1e-9)
-    lin._build(0)
-    plan, info = lin._solve(np.asarray(lin.model.param_vector, float), obs, sol)
+    lin = PseudospectralMPC.from_env(
+        env, exact.learner, learned_dynamics=LinearizedGP(max_linearizations=5, tol=1e-9))
+    planner = lin._planner()
+    plan, info = planner._solve(planner.planning.param_values(), obs, sol, cold=False)
     assert plan.success and info["solves"] >= 1
     np.testing.assert_allclose(plan.x, sol.x, atol=1e-5)
     np.testing.assert_allclose(plan.u, sol.u, atol=1e-4)
@@ -189,7 +198,7 @@ def test_linearized_nlp_has_no_learner_parameters_and_is_built_once():
         agent.observe(obs, action, nxt)
         obs = nxt
     assert agent.n_builds == 1
-    problem = agent._ocp.problem
+    problem = agent.planner.ocp.problem
     assert problem.n_params == len(agent.model.param_names)
     d, cols = agent.residual.n_outputs, agent.residual.jacobian_columns
     assert problem.n_node_params == d * (1 + len(cols)) + 2  # + frozen variances of x, y
@@ -199,7 +208,9 @@ def test_linearized_nlp_has_no_learner_parameters_and_is_built_once():
     with pytest.raises(ValueError, match="learned_dynamics"):
         PseudospectralMPC.from_env(env, learned_dynamics="taylor")
     with pytest.raises(ValueError, match="max_linearizations"):
-        PseudospectralMPC.from_env(env, max_linearizations=0)
+        LinearizedGP(max_linearizations=0)
+    with pytest.raises(TypeError, match="learned_dynamics"):
+        PseudospectralMPC.from_env(env, learned_dynamics=3)
 
 
 # ------------------------------------------------------------------------ agent contract
@@ -235,21 +246,20 @@ def test_bad_settings_raise():
 
 def test_a_learned_model_too_large_to_plan_with_is_a_clear_error(monkeypatch):
     """An exact GP over many nodes once exhausted 24 GB inside CasADi; now it is a ValueError."""
-    import gp_agents.mpc as mpc_module
     from gp_agents.learners import ExactGP
 
     env = gym.make(CART)
     data = collect_initial_data(env, 40, seed=0)
     small = PseudospectralMPC.from_env(env, ExactGP(), n_intervals=1).pretrain(data)
-    obs, _ = env.reset(seed=0)
-    # the size proxy grows linearly with the collocation nodes and the GP's training points
-    size = small._learned_model_size(small._learner_theta().size)
     large = PseudospectralMPC.from_env(env, ExactGP(), n_intervals=3).pretrain(data)
-    assert large._learned_model_size(large._learner_theta().size) == 3 * size
+    obs, _ = env.reset(seed=0)
+    # the size proxy grows with the collocation nodes and with the GP's training points
+    size = small.term.model_size(small.mesh.n_collocation)
+    assert large.term.model_size(large.mesh.n_collocation) > 2.5 * size
     more = PseudospectralMPC.from_env(env, ExactGP(), n_intervals=1).pretrain(
         collect_initial_data(env, 80, seed=0))
-    assert 1.8 * size < more._learned_model_size(more._learner_theta().size) < 2.2 * size
-    monkeypatch.setattr(mpc_module, "MAX_LEARNED_MODEL_SIZE", 2 * size)
+    assert 1.8 * size < more.term.model_size(more.mesh.n_collocation) < 2.2 * size
+    monkeypatch.setattr(gp_in_nlp_module, "MAX_LEARNED_MODEL_SIZE", 2 * size)
     assert small.act(obs) in env.action_space
     with pytest.raises(ValueError, match="too large to plan with"):
         large.act(obs)
@@ -275,39 +285,71 @@ def test_solver_is_built_once_and_learning_updates_parameters_only():
     assert d["learner_samples"][replans].tolist() == (100 + replans).tolist()
 
 
-def test_applied_control_is_the_plan_mean_over_the_first_period():
+def test_applied_action_is_the_plans_held_first_period():
+    """Errata note 5 settled: the action is the plan's held decision for the first period, and
+    the plan's model under it reproduces the plan's own state one period later (the plant's
+    zero-order hold), here with the oracle's model, so plan and plant agree."""
     env = gym.make(CART)
     obs, _ = env.reset(seed=0)
-    agent = PseudospectralMPC.from_env(env, oracle=True)
-    action = agent.act(obs)
-    sol = agent._plan.solution
-    t = np.linspace(0, env.unwrapped.nominal_model.dt, 2001)
-    dense = np.trapezoid(sol.control(t)[:, 0], t) / t[-1]
-    assert action[0] == pytest.approx(np.clip(dense, -35, 35), rel=1e-4)
+    agent = PseudospectralMPC.from_env(env, **oracle(env))
+    for _ in range(15):  # into the swing, where the control is far from constant
+        action = agent.act(obs)
+        sol = agent.plan.solution
+        held = sol.u[: sol.nodes_per_interval[0], 0]
+        assert agent.plan.held[0] and np.ptp(held) < 1e-9
+        assert action[0] == pytest.approx(np.float32(held[0]))
+        truth = gp_envs.oracle_model(env)
+        stepped = truth.step(sol.state(0.0), sol.u[0])
+        np.testing.assert_allclose(stepped, sol.state(truth.dt), atol=1e-5)
+        obs, *_ = env.step(action)
+    assert np.ptp(agent.diagnostics_arrays()["action"]) > 5.0  # the swing-up is under way
 
 
 def test_failed_solves_fall_back_without_crashing():
     env = gym.make(CART)
-    agent = PseudospectralMPC.from_env(env, oracle=True)
+    agent = PseudospectralMPC.from_env(env, **oracle(env))
     obs, _ = env.reset(seed=0)
     for _ in range(3):  # good plans first
         obs, *_ = env.step(agent.act(obs))
     agent.solver_options = {"ipopt": {"max_iter": 1}}
-    agent._ocp = None  # rebuild with a solver that cannot converge
+    agent.planner = None  # rebuild with a solver that cannot converge
     for _ in range(3):
         action = agent.act(obs)
         assert env.action_space.contains(action)
         obs, *_ = env.step(action)
     assert agent.n_failures == 3 and agent.n_fallbacks == 3
+    assert agent.n_capped == 6  # each failed solve and its retry hit the iteration cap
 
 
 def test_episodic_mode_plans_once():
     env = gym.make(CART)
-    agent = PseudospectralMPC.from_env(env, oracle=True, mode="episodic")
+    agent = PseudospectralMPC.from_env(env, mode="episodic", **oracle(env))
     obs, _ = env.reset(seed=0)
     for _ in range(5):
         obs, *_ = env.step(agent.act(obs))
     assert agent.n_solves == 1 and agent.horizon == pytest.approx(6.0)
+    assert agent.mesh.describe() == "120 held periods x 3 nodes"
+    actions = agent.diagnostics_arrays()["action"][:, 0]
+    u = agent.plan.solution.u[:, 0].reshape(120, 3)
+    np.testing.assert_array_equal(actions, u[:5, 0].astype(np.float32))
+
+
+def test_episodic_oracle_plan_is_what_the_quadrotor_plant_does():
+    """Every period of the episodic plan is held, so the plan's states at the period
+    boundaries are the plant's RK4 steps under the plan's actions (within 1e-6), and the plan
+    keeps the attitude inside the box at every boundary."""
+    env = gym.make(QUAD, scenario="gp")
+    obs, _ = env.reset(seed=0)
+    agent = PseudospectralMPC.from_env(env, mode="episodic", **oracle(env))
+    agent.act(obs)
+    plan, truth = agent.plan, gp_envs.oracle_model(env)
+    assert plan.solution.success
+    t = np.arange(121) * truth.dt
+    X = plan.solution.state(t)
+    U = np.array([plan.action(k, truth.u_lb, truth.u_ub) for k in range(120)])
+    stepped = np.array([truth.step(X[k], U[k]) for k in range(120)])
+    assert np.max(np.abs(stepped - X[1:])) < 1e-6
+    assert np.all(X <= truth.x_ub + 1e-9) and np.all(X >= truth.x_lb - 1e-9)
 
 
 def test_agent_follows_a_redrawn_nominal_model_without_rebuilding():
@@ -328,7 +370,7 @@ def test_cartpole_online_table_oracle_swings_up_and_nominal_does_not():
     """The paper's table 2 setting: the damping-free nominal model cannot swing up the true
     (heavily damped) cart pole within the force bound; the true model can."""
     env = gym.make(CART, scenario="online")
-    _obs, _, info = run_episode(env, PseudospectralMPC.from_env(env, oracle=True))
+    _obs, _, info = run_episode(env, PseudospectralMPC.from_env(env, **oracle(env)))
     assert info["success"]
     _, _, info = run_episode(env, PseudospectralMPC.from_env(env))
     assert not info["success"]
@@ -339,7 +381,7 @@ def test_quadrotor_nominal_mass_error_leaves_a_height_offset():
     obs, _, _ = run_episode(env, PseudospectralMPC.from_env(env))
     goal = env.unwrapped.nominal_model.task.goal
     assert obs[2] - goal[2] > 0.02  # sags (NED: +z is down): thrust planned for 0.9 kg
-    obs, _, _ = run_episode(env, PseudospectralMPC.from_env(env, oracle=True))
+    obs, _, _ = run_episode(env, PseudospectralMPC.from_env(env, **oracle(env)))
     assert np.max(np.abs(obs[:3] - goal[:3])) < 0.01
 
 

@@ -504,3 +504,83 @@ def test_node_parameters_time_varying_dynamics() -> None:
     with pytest.raises(ValueError, match="NaN"):
         solver.solve(node_params=np.full((t.size, 1), np.nan))
 
+
+
+# ---------------------------------------------------------------------------- held controls
+def sampled_data_hager(n_periods: int) -> tuple[float, np.ndarray]:
+    """Hager's problem with the control held constant over n equal periods, solved without any
+    collocation: exact flow of ydot = y/2 + u per period, cost by adaptive quadrature, the n
+    controls by BFGS."""
+    from scipy.integrate import quad
+    from scipy.optimize import minimize
+
+    h = 1.0 / n_periods
+
+    def cost(u: np.ndarray) -> float:
+        y0, total = 1.0, 0.0
+        for uk in u:
+            def y(t: float, y0: float = y0, uk: float = uk) -> float:
+                return np.exp(0.5 * t) * y0 + 2.0 * (np.exp(0.5 * t) - 1.0) * uk
+            total += quad(lambda t, y=y, uk=uk: 0.5 * (uk**2 + 2.0 * y(t) ** 2), 0.0, h,
+                          epsabs=1e-13, epsrel=1e-13)[0]
+            y0 = y(h)
+        return total
+
+    res = minimize(cost, np.zeros(n_periods), method="BFGS", options={"gtol": 1e-10})
+    return float(res.fun), res.x
+
+
+def test_held_intervals_solve_the_sampled_data_problem() -> None:
+    """Every interval held: the NLP is the zero-order-hold (sampled-data) problem, whose optimum
+    is computed independently from the exact flow (no collocation)."""
+    J, u = sampled_data_hager(4)
+    solver = GaussPseudospectralSolver(hager_problem(), n_nodes=4, n_intervals=4,
+                                       hold=[True] * 4)
+    sol = solver.solve()
+    assert sol.success and solver.n_control_decisions == 4
+    assert sol.cost == pytest.approx(J, rel=1e-8)
+    held = sol.u[:, 0].reshape(4, 4)
+    np.testing.assert_allclose(held, np.repeat(u[:, None], 4, axis=1), atol=1e-5)
+    # the control interpolant is that constant inside each period, even between the nodes
+    t = np.linspace(0.0, 0.999, 37)
+    np.testing.assert_allclose(sol.control(t)[:, 0], u[np.floor(t * 4).astype(int)], atol=1e-5)
+    # and the polynomial-control optimum is lower (it is the continuous problem's)
+    assert HAGER_J < J
+
+
+def test_mixed_mesh_first_period_held_then_lg() -> None:
+    """A held first period then one LG interval (the receding-horizon layout), per-interval node
+    counts: the held control is one value; the rest converges to the continuous optimum as the
+    held period shrinks."""
+    costs = []
+    for first in (0.2, 0.05, 0.01):
+        solver = GaussPseudospectralSolver(hager_problem(), n_nodes=[3, 14],
+                                           mesh=[0.0, first, 1.0], hold=[True, False])
+        sol = solver.solve()
+        assert sol.success and sol.nodes_per_interval == (3, 14)
+        assert solver.n_points == 4 + 15 + 1 and solver.n_collocation == 17
+        assert np.ptp(sol.u[:3, 0]) < 1e-12
+        costs.append(sol.cost)
+    assert costs[0] > costs[1] > costs[2] > HAGER_J
+    assert costs[2] == pytest.approx(HAGER_J, rel=1e-4)
+    # a shifted warm start of a mixed mesh re-solves to the same plan from its own solution
+    again = solver.solve(initial_guess=sol)
+    assert again.success and again.iterations <= 2
+    np.testing.assert_allclose(again.x, sol.x, atol=1e-8)
+
+
+def test_path_constraints_hold_at_held_interval_ends() -> None:
+    """The end point of a held interval (a control period's boundary) satisfies the path
+    constraint, not just the nodes inside it: y >= 0.6 where the unconstrained optimum dips
+    to ~0.57 near the end."""
+    problem = hager_problem(path_constraints=lambda x, u: 0.6 - x[0])
+    solver = GaussPseudospectralSolver(problem, n_nodes=3, n_intervals=5, hold=[True] * 5)
+    sol = solver.solve()
+    assert sol.success
+    ends = sol.x[[4 * (s + 1) for s in range(5)], 0]  # X_{s+1,0} and X_f
+    assert np.all(ends >= 0.6 - 1e-7)
+    assert np.min(np.abs(ends - 0.6)) < 1e-6  # active at some boundary
+    with pytest.raises(ValueError, match="hold"):
+        GaussPseudospectralSolver(hager_problem(), n_nodes=3, n_intervals=2, hold=[True])
+    with pytest.raises(ValueError, match="n_nodes"):
+        GaussPseudospectralSolver(hager_problem(), n_nodes=[3, 0])

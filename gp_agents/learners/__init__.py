@@ -12,6 +12,7 @@ from ._validation import NotFittedError
 from .exact_gp import ExactGP
 from .hyperparameters import GPHyperparameters, HyperparameterBounds
 from .incremental import IncrementalSSGP
+from .recipes import online_ssgp
 from .ssgp import SSGP
 from .standardization import Standardizer
 
@@ -23,4 +24,5 @@ __all__ = [
     "IncrementalSSGP",
     "NotFittedError",
     "Standardizer",
+    "online_ssgp",
 ]

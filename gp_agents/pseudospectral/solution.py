@@ -113,7 +113,8 @@ class InitialGuess:
 class OCPSolution:
     """Result of one Gauss pseudospectral solve (successful or not).
 
-    With S mesh intervals of K nodes each, N = S (K + 1) + 1 state points and M = S K nodes.
+    With S mesh intervals of K_s nodes each, N = sum_s (K_s + 1) + 1 state points and
+    M = sum_s K_s nodes.
 
     Attributes:
         t0, tf: initial and final time of the horizon (tf is the optimised value if free).
@@ -131,7 +132,7 @@ class OCPSolution:
             defect and quadrature multipliers), units of cost per unit state.
         costate_initial: (n,) costate estimate at t0.
         costate_final: (n,) costate estimate at tf (from the last quadrature multiplier).
-        n_nodes: K, nodes per interval.
+        nodes_per_interval: (S,) K_s, LG nodes of each interval.
         interval_times: (S + 1,) mesh interval boundaries in time.
         u_lb, u_ub: (m,) control bounds, used for clipping.
         p: (n_p,) parameter vector the problem was solved with.
@@ -154,7 +155,7 @@ class OCPSolution:
     costate: FloatArray
     costate_initial: FloatArray
     costate_final: FloatArray
-    n_nodes: int
+    nodes_per_interval: tuple[int, ...]
     interval_times: FloatArray
     u_lb: FloatArray
     u_ub: FloatArray
@@ -172,11 +173,22 @@ class OCPSolution:
         return int(self.interval_times.size - 1)
 
     @property
+    def _point_offset(self) -> np.ndarray:
+        """(S + 1,) index of each interval's first support point (the last: X_f's)."""
+        return np.concatenate([[0], np.cumsum([K + 1 for K in self.nodes_per_interval])])
+
+    @property
+    def _node_offset(self) -> np.ndarray:
+        """(S + 1,) index of each interval's first node (the last: M)."""
+        return np.concatenate([[0], np.cumsum(self.nodes_per_interval)])
+
+    @property
     def x_nodes(self) -> FloatArray:
-        """States at the collocation nodes ``t_nodes`` (support points 1..K of each interval),
-        shape (M, n): the points where the dynamics were enforced."""
-        K = self.n_nodes
-        rows = [s * (K + 1) + k for s in range(self.n_intervals) for k in range(1, K + 1)]
+        """States at the collocation nodes ``t_nodes`` (support points 1..K_s of each
+        interval), shape (M, n): the points where the dynamics were enforced."""
+        off = self._point_offset
+        rows = [int(off[s]) + k for s, K in enumerate(self.nodes_per_interval)
+                for k in range(1, K + 1)]
         return self.x[rows].copy()
 
     @property
@@ -215,11 +227,11 @@ class OCPSolution:
         tq = np.atleast_1d(np.asarray(t, dtype=float)).ravel()
         out = np.empty((tq.size, self.x.shape[1]))
         seg, tau = self._segments(tq)
-        K = self.n_nodes
-        support = support_points(K)
+        off = self._point_offset
         for s in np.unique(seg):
             idx = seg == s
-            values = self.x[s * (K + 1) : (s + 1) * (K + 1)]
+            values = self.x[off[s] : off[s + 1]]
+            support = support_points(self.nodes_per_interval[s])
             out[idx] = interpolation_matrix(support, tau[idx]) @ values
         out[tq >= self.tf] = self.x[-1]
         return out[0] if scalar else out
@@ -242,11 +254,11 @@ class OCPSolution:
         tq = np.atleast_1d(np.asarray(t, dtype=float)).ravel()
         out = np.empty((tq.size, self.u.shape[1]))
         seg, tau = self._segments(tq)
-        K = self.n_nodes
-        nodes, _ = legendre_gauss(K)
+        off = self._node_offset
         for s in np.unique(seg):
             idx = seg == s
-            out[idx] = interpolation_matrix(nodes, tau[idx]) @ self.u[s * K : (s + 1) * K]
+            nodes, _ = legendre_gauss(self.nodes_per_interval[s])
+            out[idx] = interpolation_matrix(nodes, tau[idx]) @ self.u[off[s] : off[s + 1]]
         return out[0] if scalar else out
 
     def initial_control(

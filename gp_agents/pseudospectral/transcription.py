@@ -7,7 +7,12 @@ LG reading (Benson et al. 2006; Garg et al. 2010; reference errata note 5). The 
 has K LG nodes, ``h_s = (b_s - a_s) / 2`` and decision variables
 
 * ``X_{s,0..K}`` (n each): the state at the support points ``tau_0 = -1, tau_1..tau_K``;
-* ``U_{s,1..K}`` (m each): the control at the nodes.
+* ``U_{s,1..K}`` (m each): the control at the nodes, or, in a *held* interval, one control
+  ``U_s`` shared by all its nodes (a zero-order hold: the control a sampled-data plant applies
+  over a control period). The Lagrange interpolant of equal node values is that constant, so a
+  held interval's dynamics are collocated under exactly the control the plant will hold.
+
+The node count may differ per interval (``n_nodes`` a sequence, ``K_s``).
 
 The end point of interval s *is* the start point X_{s+1,0} of the next one (state continuity by
 shared variables), and after the last interval comes X_f. Constraints, in this order in ``g``:
@@ -15,7 +20,9 @@ shared variables), and after the last interval comes X_f. Constraints, in this o
 1. defects (AC): ``sum_i D[k, i] X_{s,i} - h_s f(X_{s,k}, U_{s,k}, p) = 0``, (S K n);
 2. quadrature (QC): ``X_{s+1,0} - X_{s,0} - h_s sum_k w_k f(X_{s,k}, U_{s,k}, p) = 0``, (S n);
 3. path constraints (PC) at every node, (S K n_c);
-4. boundary constraints ``b(X_0, X_f, tf, p)``, (n_b).
+4. path constraints at the end point of every held interval (a control period's boundary,
+   under that period's control), (H n_c);
+5. boundary constraints ``b(X_0, X_f, tf, p)``, (n_b).
 
 Cost (DBP): ``Phi(X_0, X_f, tf, p) + sum_s h_s sum_k w_k L(X_{s,k}, U_{s,k}, p)``.
 
@@ -116,6 +123,45 @@ def default_solver_options(solver: str, user: Mapping[str, Any] | None = None) -
     return _deep_merge(base, user)
 
 
+class _MeshLayout:
+    """Index bookkeeping of a mesh with per-interval node counts and held controls.
+
+    Args:
+        counts: (S,) LG nodes K_s per interval. hold: (S,) held-control flags.
+    """
+
+    def __init__(self, counts: Sequence[int], hold: Sequence[bool]) -> None:
+        self.counts = [int(K) for K in counts]
+        rules = [legendre_gauss(K) for K in self.counts]
+        self.tau = [tau for tau, _ in rules]
+        self.weights = [w for _, w in rules]
+        self.support = [support_points(K) for K in self.counts]
+        self.D = [differentiation_matrix(K) for K in self.counts]
+        self.point_offset = np.concatenate([[0], np.cumsum([K + 1 for K in self.counts])])
+        """(S + 1,) index of each interval's first support point; the last entry is X_f's."""
+        self.node_offset = np.concatenate([[0], np.cumsum(self.counts)])
+        """(S + 1,) index of each interval's first node; the last entry is M."""
+        self.n_points = int(self.point_offset[-1]) + 1
+        self.n_nodes = int(self.node_offset[-1])
+        S = len(self.counts)
+        self.node_cols = [int(self.point_offset[s]) + k for s in range(S)
+                          for k in range(1, self.counts[s] + 1)]
+        self.start_cols = [int(c) for c in self.point_offset[:-1]]
+        self.end_cols = [int(c) for c in self.point_offset[1:]]
+        index, decisions, column = [], [], 0
+        for K, held in zip(self.counts, hold, strict=True):
+            decisions.append(column)
+            index.extend([column] * K if held else range(column, column + K))
+            column += 1 if held else K
+        self.control_index = np.array(index, dtype=int)
+        """(M,) control decision of each node."""
+        self.n_control_decisions = column
+        self.held_intervals = [s for s in range(S) if hold[s]]
+        self.held_decisions = [decisions[s] for s in self.held_intervals]
+        self.held_end_cols = [self.end_cols[s] for s in self.held_intervals]
+        self.held_last_nodes = [int(self.node_offset[s + 1]) - 1 for s in self.held_intervals]
+
+
 class GaussPseudospectralSolver:
     """Builds the LG pseudospectral NLP of a problem once and solves it many times.
 
@@ -130,10 +176,14 @@ class GaussPseudospectralSolver:
 
     Args:
         problem: the optimal control problem.
-        n_nodes: K, LG nodes per mesh interval (>= 1).
+        n_nodes: K, LG nodes per mesh interval (>= 1), or one count per interval (then the
+            number of intervals is its length, and ``n_intervals`` is ignored).
         n_intervals: S, number of equal mesh intervals (ignored if ``mesh`` is given).
         mesh: optional (S + 1,) increasing interval boundaries as fractions of the horizon,
             from 0 to 1 (e.g. ``[0, 0.2, 1]``).
+        hold: optional (S,) flags: ``True`` makes an interval's control one decision held over
+            the whole interval (zero-order hold), with the path constraints also enforced at
+            its end point. Default: no held interval (the paper's polynomial control).
         solver: CasADi nlpsol plugin: ``'ipopt'`` (default), ``'sqpmethod'``, ``'fatrop'``, ...
         solver_options: CasADi options (nested format) merged over quiet defaults, see
             :func:`default_solver_options`.
@@ -148,7 +198,7 @@ class GaussPseudospectralSolver:
     def __init__(
         self,
         problem: OptimalControlProblem,
-        n_nodes: int = 10,
+        n_nodes: int | Sequence[int] = 10,
         n_intervals: int = 1,
         mesh: Sequence[float] | None = None,
         solver: str = "ipopt",
@@ -156,11 +206,19 @@ class GaussPseudospectralSolver:
         expand: bool | None = None,
         jit: bool = False,
         jit_flags: Sequence[str] | None = None,
+        hold: Sequence[bool] | None = None,
     ) -> None:
         if not isinstance(problem, OptimalControlProblem):
             raise ValueError("problem must be an OptimalControlProblem")
-        if isinstance(n_nodes, bool) or not isinstance(n_nodes, (int, np.integer)) or n_nodes < 1:
-            raise ValueError(f"n_nodes must be an integer >= 1, got {n_nodes!r}")
+        per_interval = not isinstance(n_nodes, (int, np.integer))
+        counts = list(n_nodes) if per_interval else [n_nodes]  # type: ignore[arg-type]
+        for K in counts:
+            if isinstance(K, bool) or not isinstance(K, (int, np.integer)) or K < 1:
+                raise ValueError(f"n_nodes must be integers >= 1, got {n_nodes!r}")
+        if per_interval and mesh is None:
+            if not counts:
+                raise ValueError("n_nodes must not be empty")
+            n_intervals = len(counts)
         if mesh is None:
             if (
                 isinstance(n_intervals, bool)
@@ -182,13 +240,24 @@ class GaussPseudospectralSolver:
                     "mesh must be strictly increasing fractions of the horizon from 0 to 1, "
                     f"got {mesh_arr}"
                 )
+        S = int(mesh_arr.size - 1)
+        if not per_interval:
+            counts = counts * S
+        if len(counts) != S:
+            raise ValueError(f"n_nodes has {len(counts)} entries for {S} mesh intervals")
+        held = [False] * S if hold is None else [bool(h) for h in hold]
+        if len(held) != S:
+            raise ValueError(f"hold has {len(held)} entries for {S} mesh intervals")
         if not ca.has_nlpsol(solver):
             raise ValueError(f"CasADi NLP solver plugin {solver!r} is not available")
 
         self.problem = problem
-        self.n_nodes = int(n_nodes)
+        self.nodes_per_interval: tuple[int, ...] = tuple(int(K) for K in counts)
+        """K_s, LG nodes of each mesh interval, (S,)."""
+        self.hold: tuple[bool, ...] = tuple(held)
+        """Whether each interval's control is one held decision, (S,)."""
         self.mesh = mesh_arr
-        self.n_intervals = int(mesh_arr.size - 1)
+        self.n_intervals = S
         self.solver_name = solver
         if expand is None:
             expand = problem.functions().node.is_a("SXFunction")
@@ -206,21 +275,18 @@ class GaussPseudospectralSolver:
             )
         self.solver_options = opts
 
-        K = self.n_nodes
-        self._tau_nodes, self._weights = legendre_gauss(K)
-        self._tau_support = support_points(K)
-        self._D = differentiation_matrix(K)
-        # Fraction of the horizon at which each support point / node lies: (S(K+1)+1,), (SK,)
+        self._layout = _MeshLayout(self.nodes_per_interval, self.hold)
+        # Fraction of the horizon at which each support point / node lies: (N,), (M,)
         frac_a, frac_len = mesh_arr[:-1], np.diff(mesh_arr)
-        frac_support = (
-            frac_a[:, None] + 0.5 * (self._tau_support[None, :] + 1.0) * frac_len[:, None]
+        lay = self._layout
+        self._frac_support = np.concatenate(
+            [frac_a[s] + 0.5 * (lay.support[s] + 1.0) * frac_len[s] for s in range(S)] + [[1.0]]
         )
-        self._frac_support = np.concatenate([frac_support.ravel(), [1.0]])
-        self._frac_nodes = (
-            frac_a[:, None] + 0.5 * (self._tau_nodes[None, :] + 1.0) * frac_len[:, None]
-        ).ravel()
+        self._frac_nodes = np.concatenate(
+            [frac_a[s] + 0.5 * (lay.tau[s] + 1.0) * frac_len[s] for s in range(S)]
+        )
         self._frac_len = frac_len
-        self._structure = (id(self), K, tuple(mesh_arr.tolist()))
+        self._structure = (id(self), self.nodes_per_interval, self.hold, tuple(mesh_arr.tolist()))
         self._build()
 
     # ------------------------------------------------------------------ sizes
@@ -236,13 +302,20 @@ class GaussPseudospectralSolver:
 
     @property
     def n_points(self) -> int:
-        """Number N = S (K + 1) + 1 of state points (support points of all intervals, plus X_f)."""
-        return self.n_intervals * (self.n_nodes + 1) + 1
+        """Number N = sum_s (K_s + 1) + 1 of state points (support points of all intervals, plus
+        X_f)."""
+        return self._layout.n_points
 
     @property
     def n_collocation(self) -> int:
-        """Number M = S K of collocation nodes."""
-        return self.n_intervals * self.n_nodes
+        """Number M = sum_s K_s of collocation nodes."""
+        return self._layout.n_nodes
+
+    @property
+    def n_control_decisions(self) -> int:
+        """Number of control decisions (m each): one per node of a free interval, one per held
+        interval."""
+        return self._layout.n_control_decisions
 
     @property
     def n_variables(self) -> int:
@@ -282,11 +355,12 @@ class GaussPseudospectralSolver:
         pb = self.problem
         fns = pb.functions()
         n, m, n_p = pb.n_states, pb.n_controls, pb.n_params
-        K, S = self.n_nodes, self.n_intervals
+        lay, S = self._layout, self.n_intervals
         N, M = self.n_points, self.n_collocation
 
         X = ca.MX.sym("X", n, N)
-        U = ca.MX.sym("U", m, M)
+        U_dec = ca.MX.sym("U", m, lay.n_control_decisions)
+        U = U_dec[:, lay.control_index.tolist()]  # (m, M): held intervals share one column
         n_q = pb.n_node_params
         # NLP parameter: [p; vec(Q)] with Q (n_q, M) the per-node parameters, node k's contiguous
         P_all = ca.MX.sym("p", n_p + n_q * M)
@@ -295,31 +369,30 @@ class GaussPseudospectralSolver:
         if pb.free_final_time:
             tf_sym = ca.MX.sym("tf")
             tf_expr: ca.MX = tf_sym
-            w = ca.vertcat(ca.vec(X), ca.vec(U), tf_sym)
+            w = ca.vertcat(ca.vec(X), ca.vec(U_dec), tf_sym)
         else:
             tf_expr = ca.MX(pb.tf)
-            w = ca.vertcat(ca.vec(X), ca.vec(U))
-
-        node_cols = [s * (K + 1) + k for s in range(S) for k in range(1, K + 1)]
-        start_cols = [s * (K + 1) for s in range(S)]
-        end_cols = [(s + 1) * (K + 1) for s in range(S)]
+            w = ca.vertcat(ca.vec(X), ca.vec(U_dec))
 
         # Half interval lengths h_s per node column: (1, M); h_s = (tf - t0)/2 * frac_len_s.
         half_span = 0.5 * (tf_expr - pb.t0)
-        h_row = half_span * ca.DM(np.repeat(self._frac_len, K)[None, :])
+        h_row = half_span * ca.DM(np.repeat(self._frac_len, lay.counts)[None, :])
 
         # Block-diagonal differentiation and quadrature matrices (sparse constants).
         rows, cols, vals = [], [], []
         for s in range(S):
+            K, D = lay.counts[s], lay.D[s]
             for k in range(K):
                 for i in range(K + 1):
-                    rows.append(s * (K + 1) + i)
-                    cols.append(s * K + k)
-                    vals.append(self._D[k, i])
+                    rows.append(lay.point_offset[s] + i)
+                    cols.append(lay.node_offset[s] + k)
+                    vals.append(D[k, i])
         D_big = ca.DM(ca.Sparsity.triplet(N, M, rows, cols), vals)
-        q_rows = [s * K + k for s in range(S) for k in range(K)]
-        q_cols = [s for s in range(S) for _ in range(K)]
-        W_big = ca.DM(ca.Sparsity.triplet(M, S, q_rows, q_cols), np.tile(self._weights, S))
+        node_weights = np.concatenate(lay.weights)
+        q_cols = np.repeat(np.arange(S), lay.counts).tolist()
+        W_big = ca.DM(ca.Sparsity.triplet(M, S, list(range(M)), q_cols), node_weights)
+        node_cols, start_cols, end_cols = lay.node_cols, lay.start_cols, lay.end_cols
+        n_held = len(lay.held_intervals)
 
         def transcribe(node: ca.Function) -> tuple[ca.MX, ca.MX]:
             """Cost and constraints with dynamics, running cost and path constraints evaluated
@@ -329,8 +402,14 @@ class GaussPseudospectralSolver:
             defects = ca.mtimes(X, D_big) - hF  # paper eq. (AC)
             quadrature = X[:, end_cols] - X[:, start_cols] - ca.mtimes(hF, W_big)  # eq. (QC)
             phi, b = fns.boundary(X[:, 0], X[:, N - 1], tf_expr, P)
-            cost = phi + ca.mtimes(L * h_row, ca.DM(np.tile(self._weights, S)))  # eq. (DBP)
-            return cost, ca.vertcat(ca.vec(defects), ca.vec(quadrature), ca.vec(C), b)
+            cost = phi + ca.mtimes(L * h_row, ca.DM(node_weights))  # eq. (DBP)
+            C_end = ca.MX(0, 1)
+            if n_held:  # path constraints at held intervals' end points, under their control
+                _, _, C_end = node.map(n_held)(
+                    X[:, lay.held_end_cols], U_dec[:, lay.held_decisions],
+                    ca.repmat(P, 1, n_held), Q[:, lay.held_last_nodes])
+            return cost, ca.vertcat(ca.vec(defects), ca.vec(quadrature), ca.vec(C),
+                                    ca.vec(C_end), b)
 
         cost, g = transcribe(fns.node)
         self._nlp_x_size = int(w.shape[0])
@@ -343,16 +422,16 @@ class GaussPseudospectralSolver:
         ubx_X = np.tile(pb.x_ub[:, None], (1, N))
         lbx_X[:, 0], ubx_X[:, 0] = pb.x0_lb, pb.x0_ub
         lbx_X[:, -1], ubx_X[:, -1] = pb.xf_lb, pb.xf_ub
-        lbx = [lbx_X.ravel(order="F"), np.tile(pb.u_lb, M)]
-        ubx = [ubx_X.ravel(order="F"), np.tile(pb.u_ub, M)]
+        lbx = [lbx_X.ravel(order="F"), np.tile(pb.u_lb, lay.n_control_decisions)]
+        ubx = [ubx_X.ravel(order="F"), np.tile(pb.u_ub, lay.n_control_decisions)]
         if pb.free_final_time:
             lbx.append([pb.tf_bounds[0]])
             ubx.append([pb.tf_bounds[1]])
         self._lbx = np.concatenate(lbx).astype(float)
         self._ubx = np.concatenate(ubx).astype(float)
         zeros = np.zeros(n * M + n * S)
-        self._lbg = np.concatenate([zeros, np.tile(pb.path_lb, M), pb.boundary_lb])
-        self._ubg = np.concatenate([zeros, np.tile(pb.path_ub, M), pb.boundary_ub])
+        self._lbg = np.concatenate([zeros, np.tile(pb.path_lb, M + n_held), pb.boundary_lb])
+        self._ubg = np.concatenate([zeros, np.tile(pb.path_ub, M + n_held), pb.boundary_ub])
 
         nlp = {"x": w, "p": P_all, "f": cost, "g": g}
         opts = dict(self.solver_options)
@@ -405,7 +484,13 @@ class GaussPseudospectralSolver:
         return X, U, tf
 
     def _pack(self, X: FloatArray, U: FloatArray, tf: float) -> FloatArray:
-        parts = [X.T.ravel(order="F"), U.T.ravel(order="F")]
+        """NLP primal vector from node states X (N, n) and node controls U (M, m); a held
+        interval's decision is the mean of its nodes' controls."""
+        lay = self._layout
+        U_dec = np.zeros((lay.n_control_decisions, U.shape[1]))
+        np.add.at(U_dec, lay.control_index, U)
+        U_dec /= np.bincount(lay.control_index, minlength=lay.n_control_decisions)[:, None]
+        parts = [X.T.ravel(order="F"), U_dec.T.ravel(order="F")]
         if self.problem.free_final_time:
             parts.append([tf])
         return np.concatenate(parts)
@@ -537,7 +622,7 @@ class GaussPseudospectralSolver:
     ) -> OCPSolution:
         pb = self.problem
         n, m = pb.n_states, pb.n_controls
-        K, S, N, M = self.n_nodes, self.n_intervals, self.n_points, self.n_collocation
+        lay, S, N, M = self._layout, self.n_intervals, self.n_points, self.n_collocation
         if res is None:
             w = w0.copy()
             lam_x = np.full(self._nlp_x_size, np.nan)
@@ -557,14 +642,15 @@ class GaussPseudospectralSolver:
                 if status in ("Solve_Succeeded", "Solved_To_Acceptable_Level"):
                     status = "Invalid_Number_Detected"
         X = w[: n * N].reshape(N, n)
-        U = w[n * N : n * N + m * M].reshape(M, m)
+        U = w[n * N : n * N + m * lay.n_control_decisions].reshape(-1, m)[lay.control_index]
         tf = float(w[-1]) if pb.free_final_time else float(pb.tf)
 
-        nu = lam_g[: self._n_defect].reshape(M, n).reshape(S, K, n)
+        nu = lam_g[: self._n_defect].reshape(M, n)
         nu_f = lam_g[self._n_defect : self._n_defect + self._n_quad].reshape(S, n)
-        costate = -(nu / self._weights[None, :, None] + nu_f[:, None, :])
+        interval = np.repeat(np.arange(S), lay.counts)
+        costate = -(nu / np.concatenate(lay.weights)[:, None] + nu_f[interval])
         costate_final = -nu_f[-1]
-        costate_initial = -nu_f[0] + self._D[:, 0] @ nu[0]
+        costate_initial = -nu_f[0] + lay.D[0][:, 0] @ nu[: lay.counts[0]]
 
         iters = stats.get("iter_count", -1)
         return OCPSolution(
@@ -579,10 +665,10 @@ class GaussPseudospectralSolver:
             status=status,
             iterations=int(iters) if iters is not None else -1,
             solve_time=solve_time,
-            costate=costate.reshape(M, n),
+            costate=costate,
             costate_initial=costate_initial,
             costate_final=costate_final,
-            n_nodes=K,
+            nodes_per_interval=self.nodes_per_interval,
             interval_times=pb.t0 + (tf - pb.t0) * self.mesh,
             u_lb=pb.u_lb.copy(),
             u_ub=pb.u_ub.copy(),

@@ -1,0 +1,71 @@
+"""Per-step diagnostics of the MPC: what each ``act`` call did, as records and as arrays."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+__all__ = ["StepRecord", "records_to_arrays"]
+
+
+@dataclass
+class StepRecord:
+    """Diagnostics of one :meth:`gp_agents.PseudospectralMPC.act` call.
+
+    Attributes:
+        step: control period index since the last reset.
+        replanned: whether an OCP was solved in this call.
+        success: solver success of that solve (True when not replanned).
+        status: solver status string (``"reuse"`` when not replanned).
+        iterations: NLP iterations (0 when not replanned), summed over this call's solves.
+        solve_time: seconds spent in the NLP solver, summed likewise.
+        act_time: seconds spent in the whole ``act`` call (learning update included).
+        fallback: the applied control came from an older plan (or a constant one) because
+            the solve failed.
+        learner_samples: samples the learner has seen after this call's update.
+        plan_t: (N,) times of the current plan's state points (relative to now).
+        plan_x: (N, n) the current plan's states (the predicted trajectory).
+        action: (m,) the applied action.
+        solves: NLP solves in this call (retries and re-linearizations included).
+        linearization_error: with a linearized learned term, the plan's largest expansion
+            error as a fraction of its tolerance (NaN if the solve gave no finite plan; 0
+            otherwise).
+    """
+
+    step: int
+    replanned: bool
+    success: bool
+    status: str
+    iterations: int
+    solve_time: float
+    act_time: float
+    fallback: bool
+    learner_samples: int
+    plan_t: np.ndarray
+    plan_x: np.ndarray
+    action: np.ndarray
+    solves: int = 0
+    linearization_error: float = 0.0
+
+
+def records_to_arrays(records: list[StepRecord]) -> dict[str, np.ndarray]:
+    """One array of length T per :class:`StepRecord` field (``{}`` for no records); ragged
+    plans (``plan_t`` (T, N), ``plan_x`` (T, N, n)) are padded with NaN."""
+    if not records:
+        return {}
+    out: dict[str, np.ndarray] = {}
+    for f in fields(StepRecord):
+        values = [getattr(r, f.name) for r in records]
+        out[f.name] = _stack_ragged(values) if f.name in ("plan_t", "plan_x") else np.array(values)
+    return out
+
+
+def _stack_ragged(arrays: list[np.ndarray]) -> np.ndarray:
+    if len({a.shape for a in arrays}) == 1:
+        return np.stack(arrays)
+    longest = max(a.shape[0] for a in arrays)
+    out = np.full((len(arrays), longest, *arrays[0].shape[1:]), np.nan)
+    for i, a in enumerate(arrays):
+        out[i, : a.shape[0]] = a
+    return out

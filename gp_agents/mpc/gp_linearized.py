@@ -1,0 +1,115 @@
+"""The learned residual linearized per node about a reference trajectory (real-time iteration).
+
+Instead of the GP itself, the NLP gets its first-order expansion at every collocation node,
+``mean(phi(x_k, u_k)) ~ g_k + J_k [x_k - xb_k; u_k - ub_k]``, about a reference ``(xb, ub)``
+(the warm start: the previous plan shifted in time). ``g_k`` and ``J_k`` come from the learner's
+numeric ``predict`` and ``predict_gradient`` (:meth:`gp_agents.residual.ResidualModel.
+linearize`) and are per-node NLP parameters, so the NLP has the nominal model's Hessian and a
+denser Jacobian, and the learner is evaluated once per node per solve instead of once per node
+per IPOPT iteration with its second derivatives. The plan is optimal for the expansion, not for
+the GP: after every solve the GP is evaluated at the plan's nodes and the expansion's error
+recorded (:meth:`LinearizedGP.plan_error`); a fixed point of re-linearizing about the plan is a
+KKT point of the exact OCP (model values and first derivatives agree there).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from gp_agents.mpc.gp_in_nlp import not_fitted
+from gp_agents.mpc.learned_term import LearnedTerm
+from gp_agents.pseudospectral import OCPSolution
+
+__all__ = ["COLD_START_LINEARIZATIONS", "LinearizedGP"]
+
+COLD_START_LINEARIZATIONS = 5
+"""Solves a linearized plan may take from a cold start (the goal guess): the expansion about a
+straight line can be far off (once it made the cart pole's first NLP infeasible), and the plan it
+gives is the reference of every later step."""
+
+
+class LinearizedGP(LearnedTerm):
+    """``r(x, u) = g_k + J_k [x; u] - J_k [xb_k; ub_k]`` at node k, ``g_k, J_k`` per solve.
+
+    Per-node parameters ``q_k = [c_k; vec(J_k[:, cols]); (vx_k, vy_k)]`` with
+    ``c_k = g_k - J_k [xb_k; ub_k]``, ``cols`` the columns of ``[x; u]`` the learner's input
+    depends on (``ResidualModel.jacobian_columns``, column-major ``vec``), and, with an
+    uncertainty radius, the reference's predictive variances of the x and y rates (frozen).
+
+    Args:
+        max_linearizations: solves per replan (>= 1): a plan whose expansion error exceeds 1
+            (or a failed solve's finite last iterate) is re-linearized about and re-solved
+            while solves remain; cold starts get at least :data:`COLD_START_LINEARIZATIONS`.
+        tol: relative tolerance of the expansion: per output j, ``tol * max_k |mean_j| +
+            1e-3`` (state-rate units), the largest over the plan's nodes.
+    """
+
+    name = "linearized"
+
+    def __init__(self, max_linearizations: int = 1, tol: float = 0.1) -> None:
+        super().__init__()
+        if int(max_linearizations) < 1:
+            raise ValueError(f"max_linearizations must be >= 1, got {max_linearizations}")
+        if not (np.isfinite(tol) and tol > 0):
+            raise ValueError(f"linearization tol must be > 0, got {tol}")
+        self.max_linearizations = int(max_linearizations)
+        self.tol = float(tol)
+        self._expansion: dict[str, np.ndarray] | None = None
+
+    @property
+    def _n_jacobian(self) -> int:
+        return self.residual.n_outputs * (1 + len(self.residual.jacobian_columns))
+
+    def n_node_params(self) -> int:
+        return self._n_jacobian + (2 if self.variance else 0)
+
+    def param_values(self) -> np.ndarray:
+        try:
+            self.learner.casadi_param_size()  # fitted? (the NLP holds no learner parameters)
+        except (ValueError, RuntimeError) as err:
+            raise not_fitted(err) from err
+        return np.zeros(0)
+
+    def rates(self, x: Any, u: Any, theta: Any, q: Any) -> Any:
+        d, cols = self.residual.n_outputs, list(self.residual.jacobian_columns)
+        jac = ca.reshape(q[d:self._n_jacobian], d, len(cols))
+        return q[:d] + ca.mtimes(jac, ca.vertcat(x, u)[cols])
+
+    def position_variance(self, x: Any, u: Any, theta: Any, q: Any) -> tuple[Any, Any] | None:
+        n = self.n_node_params()
+        return q[n - 2], q[n - 1]
+
+    def node_param_values(self, X: np.ndarray, U: np.ndarray) -> np.ndarray:
+        """The expansion about node states X (M, n) and controls U (M, m), kept for
+        :meth:`plan_error`; returns (M, n_node_params)."""
+        X, U = np.atleast_2d(X), np.atleast_2d(U)
+        mean, jac, var = self.residual.linearize(self.learner, X, U, variance=self.variance)
+        points = np.hstack([X, U])
+        c = mean - np.einsum("kij,kj->ki", jac, points)
+        cols = list(self.residual.jacobian_columns)
+        blocks = [c, jac[:, :, cols].transpose(0, 2, 1).reshape(X.shape[0], -1)]
+        if var is not None:
+            unc = self.residual.uncertain_indices
+            blocks.append(var[:, [unc.index(0), unc.index(1)]])
+        self._expansion = dict(mean=mean, jacobian=jac, points=points)
+        return np.hstack(blocks)
+
+    def solves(self, cold: bool) -> int:
+        return max(self.max_linearizations, COLD_START_LINEARIZATIONS if cold else 1)
+
+    def plan_error(self, plan: OCPSolution) -> float:
+        """The expansion's largest error at ``plan``'s nodes as a fraction of its tolerance
+        (NaN if the plan is not finite)."""
+        X, U = plan.x_nodes, plan.u
+        if self._expansion is None or not (np.all(np.isfinite(X)) and np.all(np.isfinite(U))):
+            return float("nan")
+        mean = self.learner.predict(self.residual.inputs(X, U))
+        e = self._expansion
+        dz = np.hstack([X, U]) - e["points"]
+        predicted = e["mean"] + np.einsum("kij,kj->ki", e["jacobian"], dz)
+        err = np.max(np.abs(mean - predicted), axis=0)
+        tol = self.tol * np.max(np.abs(mean), axis=0) + 1e-3
+        return float(np.max(err / tol))

@@ -1,0 +1,84 @@
+"""When an MPC plans and over what mesh: receding horizon (Algorithm 1) or one episodic plan.
+
+Both make every period they execute from a plan a held interval of its mesh
+(:mod:`gp_agents.mpc.ocp`), so the action sent to the env is a decision of the plan.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from gp_agents.mpc.ocp import Mesh
+from gp_agents.mpc.planner import Plan
+
+__all__ = ["DEFAULT_SETTINGS", "EPISODIC_SETTINGS", "Episodic", "RecedingHorizon"]
+
+DEFAULT_SETTINGS: dict[str, dict[str, Any]] = {
+    "cartpole": {"horizon": 1.5, "n_nodes": 16, "n_intervals": 1},
+    "quadrotor": {"horizon": 1.5, "n_nodes": 10, "n_intervals": 1},
+    "dubins": {"horizon": 4.0, "n_nodes": 12, "n_intervals": 2},
+}
+"""Receding-horizon settings per system: horizon (s), LG nodes per interval and intervals of
+the polynomial part after the held periods."""
+
+EPISODIC_SETTINGS: dict[str, dict[str, Any]] = {
+    "cartpole": {"nodes_per_period": 3},
+    "quadrotor": {"nodes_per_period": 3},
+    "dubins": {"nodes_per_period": 3},
+}
+"""Episodic settings per system: LG nodes in each held control period. Three nodes collocate
+one period of these systems to within ~1e-9 of the plant's RK4 step (``tests/test_mpc.py``)."""
+
+
+class RecedingHorizon:
+    """Re-plan every ``replan_every`` periods over a fixed horizon (paper, Algorithm 1).
+
+    The first ``replan_every`` periods of each plan are held (they are executed), the rest of
+    the horizon is polynomial control on ``n_intervals`` LG intervals of ``n_nodes`` nodes.
+
+    Args:
+        horizon: seconds. n_nodes, n_intervals: the LG part. replan_every: ``p`` >= 1.
+        held_nodes: LG nodes in each held period.
+    """
+
+    name = "receding"
+    learns = True
+
+    def __init__(self, horizon: float, n_nodes: int, n_intervals: int = 1,
+                 replan_every: int = 1, held_nodes: int = 3) -> None:
+        if int(replan_every) < 1:
+            raise ValueError(f"replan_every must be >= 1, got {replan_every}")
+        self.horizon = float(horizon)
+        self.n_nodes, self.n_intervals = int(n_nodes), int(n_intervals)
+        self.replan_every, self.held_nodes = int(replan_every), int(held_nodes)
+
+    def mesh(self, dt: float) -> Mesh:
+        """The receding mesh for control period ``dt`` (s)."""
+        return Mesh.receding(self.horizon, dt, self.n_nodes, self.n_intervals,
+                             held_periods=self.replan_every, held_nodes=self.held_nodes)
+
+    def due(self, step: int, plan: Plan | None) -> bool:
+        """Whether to plan at period ``step``."""
+        return plan is None or step - plan.step >= self.replan_every
+
+
+class Episodic:
+    """Plan once over the whole task at the first ``act``, then execute it open loop.
+
+    Args:
+        duration: the task's duration (s). nodes_per_period: LG nodes per held period.
+    """
+
+    name = "episodic"
+    learns = False
+
+    def __init__(self, duration: float, nodes_per_period: int = 3) -> None:
+        self.horizon, self.nodes_per_period = float(duration), int(nodes_per_period)
+
+    def mesh(self, dt: float) -> Mesh:
+        """Every period of the task held."""
+        return Mesh.episodic(self.horizon, dt, self.nodes_per_period)
+
+    def due(self, step: int, plan: Plan | None) -> bool:
+        """Only the first period."""
+        return plan is None
