@@ -3,7 +3,7 @@
 Trial kind ``"peers"`` (:mod:`benchmarks.trial`): one episode of the ``nominal-mpc`` recipe
 (:class:`gp_agents.PseudospectralMPC`, Gauss pseudospectral collocation) and one episode of a
 do-mpc controller built from the same ingredients, from the same seeded initial state, measured
-back to back in the same process:
+in lockstep in the same process (one step of each in turn, on two envs reset with the same seed):
 
 - dynamics: the env's nominal model, ``model.casadi_function()`` (CasADi SX);
 - cost: ``integral of l(x, u) dt + e' Qf e`` with the task's ``Q``, ``R``, ``Qf`` and goal (do-mpc
@@ -38,7 +38,7 @@ import numpy as np
 
 from benchmarks.controllers import ControllerUnavailableError, make_env
 from benchmarks.trial import TrialSpec
-from gp_agents.agent import rollout
+from gp_agents.agent import Episode, rollout_lockstep
 
 STATE_MARGIN = 0.05
 """Same default as :class:`gp_agents.PseudospectralMPC` ``state_margin``."""
@@ -130,8 +130,7 @@ class DoMPCController:
         return np.clip(u, self.model.u_lb, self.model.u_ub).astype(np.float32)
 
 
-def _episode(env: Any, agent: Any, seed: int) -> dict[str, Any]:
-    ep = rollout(env, agent, seed)
+def _summary(ep: Episode) -> dict[str, Any]:
     return {"act": ep.act_times, "cost": ep.cost, "success": ep.success,
             "obs": ep.observations,
             "termination": ep.final_info.get("termination_reason") or "time limit"}
@@ -151,8 +150,9 @@ def run_peers(spec: TrialSpec) -> dict[str, Any]:
         warnings.simplefilter("ignore")
         peer = DoMPCController(model, horizon)
 
-        ours = _episode(env, ps, spec.seed)
-        theirs = _episode(env, peer, spec.seed)
+        # one step of each in turn: a change of the machine's load slows both alike
+        ours, theirs = (_summary(e) for e in rollout_lockstep(
+            [(env, ps), (make_env(spec.env, spec.scenario), peer)], spec.seed))
     ps_solve = np.array([r.solve_time for r in ps.diagnostics if r.replanned])
     med_ours, med_theirs = float(np.median(ours["act"])), float(np.median(theirs["act"]))
     n_ps_vars = int(ps.planner.ocp.n_variables) if ps.planner is not None else -1

@@ -11,14 +11,14 @@ next_obs)``: the pseudospectral MPC, the RL policies, the peer library's MPC in 
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any, Protocol, runtime_checkable
 
 import gymnasium as gym
 import numpy as np
 
-__all__ = ["Agent", "Episode", "rollout"]
+__all__ = ["Agent", "Episode", "rollout", "rollout_lockstep"]
 
 
 @runtime_checkable
@@ -83,8 +83,7 @@ class Episode:
 
 
 def rollout(env: gym.Env, agent: Agent, seed: int | None = None, *,
-            options: dict[str, Any] | None = None, max_steps: int | None = None,
-            on_step: Callable[[int, Episode], None] | None = None) -> Episode:
+            options: dict[str, Any] | None = None, max_steps: int | None = None) -> Episode:
     """Run ``agent`` on ``env`` for one episode: reset both, then act, step, observe.
 
     Args:
@@ -93,8 +92,6 @@ def rollout(env: gym.Env, agent: Agent, seed: int | None = None, *,
         seed: ``env.reset`` seed.
         options: ``env.reset`` options.
         max_steps: stop after this many steps (None: until terminated or truncated).
-        on_step: called after every step with its index and the episode so far (its arrays
-            are filled in only at the end; use ``infos``).
 
     Returns:
         The :class:`Episode`.
@@ -102,12 +99,38 @@ def rollout(env: gym.Env, agent: Agent, seed: int | None = None, *,
     Raises:
         ValueError: ``max_steps`` < 1.
     """
+    return rollout_lockstep([(env, agent)], seed, options=options, max_steps=max_steps)[0]
+
+
+def rollout_lockstep(pairs: list[tuple[gym.Env, Agent]], seed: int | None = None, *,
+                     options: dict[str, Any] | None = None, max_steps: int | None = None
+                     ) -> list[Episode]:
+    """:func:`rollout` of several (env, agent) pairs, one step of each in turn.
+
+    For timing comparisons on a shared machine: the agents' ``act`` calls interleave, so a
+    change in the machine's load affects them alike. Each pair's episode is exactly what
+    :func:`rollout` gives it alone (the pairs share nothing but the seed).
+    """
     if max_steps is not None and max_steps < 1:
         raise ValueError(f"max_steps must be >= 1 or None, got {max_steps}")
+    loops = [_episode_steps(env, agent, seed, options, max_steps) for env, agent in pairs]
+    episodes: list[Episode | None] = [None] * len(loops)
+    while any(e is None for e in episodes):
+        for i, loop in enumerate(loops):
+            if episodes[i] is None:
+                episodes[i] = next(loop)
+    return [e for e in episodes if e is not None]
+
+
+def _episode_steps(env: gym.Env, agent: Agent, seed: int | None,
+                   options: dict[str, Any] | None, max_steps: int | None
+                   ) -> Iterator[Episode | None]:
+    """The closed loop, one step per ``next``: yields None after each step, the
+    :class:`Episode` after the last."""
     obs, _ = env.reset(seed=seed, options=options)
     agent.reset()
     observations, actions, rewards, infos, times = [np.asarray(obs, float)], [], [], [], []
-    episode = Episode(np.empty(0), np.empty(0), np.empty(0), infos, np.empty(0))
+    terminated = truncated = False
     while True:
         start = time.perf_counter()
         action = agent.act(obs)
@@ -119,15 +142,8 @@ def rollout(env: gym.Env, agent: Agent, seed: int | None = None, *,
         rewards.append(float(reward))
         infos.append(info)
         obs = next_obs
-        episode.terminated, episode.truncated = bool(terminated), bool(truncated)
-        if on_step is not None:
-            on_step(len(rewards) - 1, episode)
-        if terminated or truncated:
+        if terminated or truncated or (max_steps is not None and len(rewards) >= max_steps):
             break
-        if max_steps is not None and len(rewards) >= max_steps:
-            break
-    episode.observations = np.array(observations)
-    episode.actions = np.array(actions)
-    episode.rewards = np.array(rewards)
-    episode.act_times = np.array(times)
-    return episode
+        yield None
+    yield Episode(np.array(observations), np.array(actions), np.array(rewards), infos,
+                  np.array(times), bool(terminated), bool(truncated))
