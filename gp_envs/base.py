@@ -297,6 +297,18 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
             "time": self._steps * self.DT,
         }
 
+    # ----------------------------------------------------------------- pickling
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickled (and deep-copied) state: everything but the render figure.
+
+        The copy has the same state, step counters, true and nominal models and RNG state
+        (so its next ``reset()`` draws the same parameters); its figure is created anew by its
+        first :meth:`render` (a matplotlib figure, or a window, is not part of the env).
+        """
+        state = self.__dict__.copy()
+        state["_fig"] = None
+        return state
+
     # ----------------------------------------------------------------- rendering
     def render(self) -> np.ndarray | None:
         """Draw the system; returns an (H, W, 3) uint8 frame for ``render_mode="rgb_array"``."""

@@ -13,15 +13,45 @@ optimizer can differentiate.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
-from types import MappingProxyType
+from typing import Any, TypeVar
 
 import casadi as ca
 import numpy as np
 
 OdeFn = Callable[[ca.SX, ca.SX, ca.SX], ca.SX]
 """Signature of a physics module's ``ode(x, u, p)``: state (n,), control (m,), params (k,)."""
+
+_V = TypeVar("_V")
+
+
+class ReadOnlyMapping(Mapping[str, _V]):
+    """An immutable ``str -> value`` mapping that, unlike ``types.MappingProxyType``, pickles.
+
+    It holds its own copy of the items: changing the mapping it was built from changes nothing,
+    and it has no method that changes it (item assignment raises ``TypeError``).
+    """
+
+    __slots__ = ("_items",)
+
+    def __init__(self, items: Mapping[str, _V]) -> None:
+        self._items: dict[str, _V] = dict(items)
+
+    def __getitem__(self, key: str) -> _V:
+        return self._items[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._items)
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({self._items!r})"
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (type(self), (self._items,))
 
 
 @dataclass(frozen=True)
@@ -124,6 +154,9 @@ class Task:
 class ControlModel:
     """A physical model with one set of parameter values, bounds and a task.
 
+    Immutable; it pickles and deep-copies (the compiled CasADi functions it caches are not
+    copied but rebuilt on first use, so a copy evaluates exactly like the original).
+
     Attributes:
         name: system name (``"cartpole"``, ``"quadrotor"``, ``"dubins"``).
         ode: the physics, ``ode(x, u, p) -> xdot`` in CasADi operations.
@@ -171,7 +204,22 @@ class ControlModel:
         for k, v in self.params.items():
             if not np.isfinite(v):
                 raise ValueError(f"{self.name}: parameter {k}={v} is not finite")
-        object.__setattr__(self, "params", MappingProxyType(dict(self.params)))
+        object.__setattr__(self, "params", ReadOnlyMapping(self.params))
+
+    # ----------------------------------------------------------------- pickling
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickled state: every field except the cache of compiled CasADi functions.
+
+        The cache is rebuilt on first use after unpickling (or ``copy.deepcopy``), so a copy
+        never depends on whether, or how, CasADi serializes a compiled function.
+        """
+        state = self.__dict__.copy()
+        state["_fns"] = {}
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self.__dict__["_fns"] = {}
 
     # ----------------------------------------------------------------- sizes and parameters
     @property

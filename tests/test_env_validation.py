@@ -1,0 +1,195 @@
+"""Env robustness: copies and pickles of envs and models, and rejection of unphysical input."""
+
+from __future__ import annotations
+
+import copy
+import os
+import pickle
+import subprocess
+import sys
+from pathlib import Path
+
+import casadi as ca
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import gp_envs
+
+ENV_IDS = list(gp_envs.ENV_IDS)
+REPO = Path(__file__).resolve().parents[1]
+
+
+def make(env_id: str, **kwargs):
+    return gym.make(env_id, disable_env_checker=True, **kwargs)
+
+
+def _pickle_round_trip(obj):
+    return pickle.loads(pickle.dumps(obj))
+
+
+COPIERS = {"deepcopy": copy.deepcopy, "pickle": _pickle_round_trip}
+
+
+# ------------------------------------------------------------------------ copies and pickles
+def _random_actions(env, n: int, seed: int) -> np.ndarray:
+    low, high = env.action_space.low, env.action_space.high
+    return np.random.default_rng(seed).uniform(low, high, size=(n, low.size)).astype(np.float32)
+
+
+def _episode_record(env) -> list:
+    """What a run can observe of the episode's models: the truth and the nominal parameters."""
+    return [dict(gp_envs.oracle_model(env).params), dict(env.unwrapped.nominal_model.params)]
+
+
+def _trajectory(env, actions: np.ndarray) -> list:
+    """Steps ``actions`` (resetting, unseeded, after an episode ends), then one more unseeded
+    reset and the same actions again; everything observable, as exact values."""
+    record = []
+    for part in range(2):
+        if part == 1:
+            obs, info = env.reset()
+            record += [obs.tobytes(), info, *_episode_record(env)]
+        for a in actions:
+            obs, reward, terminated, truncated, info = env.step(a)
+            record.append((obs.tobytes(), reward, terminated, truncated, info))
+            if terminated or truncated:
+                obs, info = env.reset()
+                record += [obs.tobytes(), info, *_episode_record(env)]
+    return record
+
+
+@pytest.mark.parametrize("copier", sorted(COPIERS))
+@pytest.mark.parametrize("randomize", [0.0, 0.2])
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_copied_env_steps_and_redraws_identically(env_id, randomize, copier):
+    env = make(env_id, randomize=randomize)
+    env.reset(seed=5)
+    for a in _random_actions(env, 3, seed=1):
+        env.step(a)
+    before = _episode_record(env)
+    twin = COPIERS[copier](env)
+    assert twin.unwrapped is not env.unwrapped
+    assert twin.unwrapped.nominal_model is not env.unwrapped.nominal_model
+    actions = _random_actions(env, 20, seed=2)
+    expected = _trajectory(env, actions)  # the original first: a shared RNG or state would
+    got = _trajectory(twin, actions)      # make the twin's run differ
+    assert got == expected
+    success = [r[4]["success"] for r in expected if isinstance(r, tuple)]
+    assert success == [r[4]["success"] for r in got if isinstance(r, tuple)]
+    # the unseeded reset really redrew what is random per episode (so the RNG state mattered)
+    after = _episode_record(env)
+    if randomize > 0:
+        assert after[0] != before[0]
+    if env.unwrapped.SCENARIOS[env.unwrapped.scenario].nominal_spread:
+        assert after[1] != before[1]
+
+
+@pytest.mark.parametrize("copier", sorted(COPIERS))
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_copied_env_renders_the_same_frame(env_id, copier):
+    env = make(env_id, render_mode="rgb_array")
+    env.reset(seed=0)
+    for a in _random_actions(env, 5, seed=0):
+        env.step(a)
+    frame = env.render()  # the original now holds a figure; the copy must build its own
+    twin = COPIERS[copier](env)
+    np.testing.assert_array_equal(twin.render(), frame)
+    env.close()
+    twin.close()
+
+
+def _model_inputs(model, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    X = rng.uniform(-1, 1, (6, model.n_states))
+    U = rng.uniform(model.u_lb, model.u_ub, (6, model.n_controls))
+    return X, U
+
+
+def _evaluations(model, X, U) -> list[np.ndarray]:
+    xs, us = ca.SX.sym("x", model.n_states), ca.SX.sym("u", model.n_controls)
+    symbolic = ca.Function("f", [xs, us], [model.f(xs, us)])
+    return [model.f(X, U), model.step(X, U), model.f(X[0], U[0]), model.step(X[0], U[0]),
+            np.asarray(model.casadi_function()(X[0], U[0])).ravel(),
+            np.asarray(symbolic(X[1], U[1])).ravel()]
+
+
+@pytest.mark.parametrize("copier", sorted(COPIERS))
+@pytest.mark.parametrize("which", ["nominal", "oracle"])
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_copied_control_model_evaluates_identically(env_id, which, copier):
+    env = make(env_id, randomize=0.1)
+    env.reset(seed=3)
+    model = env.unwrapped.nominal_model if which == "nominal" else gp_envs.oracle_model(env)
+    X, U = _model_inputs(model)
+    expected = _evaluations(model, X, U)  # also fills the model's cache of CasADi functions
+    clone = COPIERS[copier](model)
+    assert clone is not model
+    assert dict(clone.params) == dict(model.params)
+    assert clone.param_names == model.param_names and clone.dt == model.dt
+    for got, want in zip(_evaluations(clone, X, U), expected, strict=True):
+        np.testing.assert_array_equal(got, want)
+    with pytest.raises(TypeError):
+        clone.params[model.param_names[0]] = 1.0
+
+
+def test_params_are_read_only_and_a_private_copy():
+    model = make("gp_envs/CartPoleSwingUp-v0").unwrapped.nominal_model
+    source = dict(model.params)
+    other = model.with_params(mc=2.0)
+    source["mc"] = 5.0  # the mapping a model was built from is not shared with it
+    assert other.params["mc"] == 2.0 and model.params["mc"] == 0.9
+    with pytest.raises(TypeError):
+        model.params["mc"] = 2.0
+    with pytest.raises(TypeError):
+        del model.params["mc"]
+    assert not hasattr(model.params, "update") and not hasattr(model.params, "pop")
+    assert dict(model.params) == {"mc": 0.9, "mp": 0.45, "l": 0.45, "b1": 0.0, "b2": 0.0,
+                                  "g": 9.81}
+
+
+_FRESH_PROCESS = """
+import pickle, sys
+import numpy as np
+import gp_envs
+models, envs, X, U, actions = pickle.loads(sys.stdin.buffer.read())
+out = []
+for (nominal, truth), env, x, u, acts in zip(models, envs, X, U, actions):
+    out.append([m.f(x, u) for m in (nominal, truth)] + [m.step(x, u) for m in (nominal, truth)])
+    out.append([env.step(a)[:2] for a in acts])
+sys.stdout.buffer.write(pickle.dumps(out))
+"""
+
+
+def test_pickles_evaluate_identically_in_a_fresh_process():
+    """Unpickled where nothing is cached: the CasADi functions are rebuilt from the physics."""
+    models, envs, X, U, actions, expected = [], [], [], [], [], []
+    for env_id in ENV_IDS:
+        env = make(env_id, randomize=0.1)
+        env.reset(seed=11)
+        nominal, truth = env.unwrapped.nominal_model, gp_envs.oracle_model(env)
+        x, u = _model_inputs(nominal, seed=4)
+        acts = _random_actions(env, 10, seed=4)
+        models.append((nominal, truth))
+        envs.append(env)
+        X.append(x)
+        U.append(u)
+        actions.append(acts)
+    payload = pickle.dumps((models, envs, X, U, actions))
+    for (nominal, truth), env, x, u, acts in zip(models, envs, X, U, actions, strict=True):
+        expected.append([m.f(x, u) for m in (nominal, truth)]
+                        + [m.step(x, u) for m in (nominal, truth)])
+        expected.append([env.step(a)[:2] for a in acts])
+    environ = {**os.environ, "PYTHONPATH": str(REPO), "OMP_NUM_THREADS": "1"}
+    done = subprocess.run([sys.executable, "-c", _FRESH_PROCESS], input=payload,
+                          capture_output=True, env=environ, cwd=REPO, timeout=120, check=False)
+    assert done.returncode == 0, done.stderr.decode()
+    got = pickle.loads(done.stdout)
+    assert len(got) == len(expected) == 2 * len(ENV_IDS)
+    for g, e in zip(got, expected, strict=True):
+        for a, b in zip(g, e, strict=True):
+            if isinstance(b, tuple):  # (obs, reward)
+                np.testing.assert_array_equal(a[0], b[0])
+                assert a[1] == b[1]
+            else:
+                np.testing.assert_array_equal(a, b)
