@@ -17,6 +17,10 @@ import numpy as np
 from gymnasium import spaces
 
 from gp_envs.model import ControlModel, Task
+from gp_envs.physics.ranges import ParamRange, check_value
+
+RANDOMIZE_RANGE = ParamRange(0.0, 1.0, True, False, "relative spread of the true parameters")
+"""Valid values of the ``randomize`` option (dimensionless)."""
 
 
 @dataclass(frozen=True)
@@ -30,7 +34,8 @@ class Scenario:
         u_lb, u_ub: (m,) control bounds for this scenario.
         nominal_spread: per-parameter standard deviation of a per-episode Gaussian draw of the
             nominal value around ``nominal`` (empty: nominal values are fixed).
-        nominal_max: upper clip of drawn nominal values (keeps e.g. ``1 - b`` positive).
+        nominal_min, nominal_max: clip of drawn nominal values to the parameters' valid range
+            (e.g. a loss factor ``b`` to ``[0, 0.9]`` so that ``1 - b`` stays positive).
     """
 
     description: str
@@ -39,6 +44,7 @@ class Scenario:
     u_lb: tuple[float, ...]
     u_ub: tuple[float, ...]
     nominal_spread: Mapping[str, float] = field(default_factory=dict)
+    nominal_min: float = -np.inf
     nominal_max: float = np.inf
 
 
@@ -53,8 +59,15 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
         scenario: name of a scenario in :attr:`SCENARIOS`.
         true_params: overrides of the scenario's true parameter values.
         randomize: relative spread of the true parameters per reset: each one is multiplied
-            by ``1 + U(-randomize, randomize)`` (``g`` is never randomized).
+            by ``1 + U(-randomize, randomize)`` (``g`` is never randomized). A real number in
+            ``[0, 1)`` (:data:`RANDOMIZE_RANGE`).
         render_mode: ``None``, ``"rgb_array"`` or ``"human"``.
+
+    Raises:
+        ValueError: an unknown scenario, render mode or parameter name; ``randomize`` not a
+            real number in ``[0, 1)`` (bools and strings included); a true parameter (after
+            the overrides, and at either end of the ``randomize`` spread) outside its valid
+            range in the physics module's ``PARAM_RANGES``.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array", "human"], "render_fps": 20}
@@ -83,11 +96,10 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, "
                              f"got {render_mode!r}")
-        if not (np.isfinite(randomize) and 0.0 <= randomize < 1.0):
-            raise ValueError(f"randomize must be in [0, 1), got {randomize}")
+        self.randomize = check_value(type(self).__name__, "randomize", randomize,
+                                     RANDOMIZE_RANGE)
         self.scenario = scenario
         self.render_mode = render_mode
-        self.randomize = float(randomize)
         spec = self.SCENARIOS[scenario]
         truth = dict(spec.true)
         if true_params:
@@ -95,10 +107,11 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
             if unknown:
                 raise ValueError(f"{type(self).__name__}: unknown parameter(s) {sorted(unknown)}; "
                                  f"known: {list(self.physics.PARAM_NAMES)}")
-            truth.update({k: float(v) for k, v in true_params.items()})
+            truth.update(true_params)
         self._spec = spec
-        self._base_truth = truth
-        self._plant = self._make_model(truth)
+        self._plant = self._make_model(truth)  # checks the true parameters' ranges
+        self._base_truth = dict(self._plant.params)
+        self._check_randomized_range()
         self.nominal_model: ControlModel = self._make_model(dict(spec.nominal))
         """What a controller may know: nominal parameters, dynamics, bounds, task."""
 
@@ -145,12 +158,27 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
             x_lb=np.asarray(self.X_LB, float), x_ub=np.asarray(self.X_UB, float),
             u_lb=np.asarray(self._spec.u_lb, float), u_ub=np.asarray(self._spec.u_ub, float),
             task=self._task(), substeps=self.SUBSTEPS, angle_indices=self.ANGLE_INDICES,
-            dynamic_indices=self.DYNAMIC_INDICES,
+            dynamic_indices=self.DYNAMIC_INDICES, param_ranges=self.physics.PARAM_RANGES,
         )
 
     def _oracle(self) -> ControlModel:
         """The true model of the current episode; only :func:`gp_envs.oracle_model` uses it."""
         return self._plant
+
+    def _check_randomized_range(self) -> None:
+        """Fail at construction, not at some later reset, if a randomized draw could leave a
+        parameter's valid range: models at both ends of the spread go through the check."""
+        if self.randomize == 0:
+            return
+        for sign in (-1.0, 1.0):
+            end = {k: v if k == "g" else v * (1.0 + sign * self.randomize)
+                   for k, v in self._base_truth.items()}
+            try:
+                self._make_model(end)
+            except ValueError as err:
+                raise ValueError(f"{type(self).__name__}: randomize={self.randomize} draws each "
+                                 f"true parameter v in [v (1 - randomize), v (1 + randomize)); "
+                                 f"at an end of that spread, {err}") from None
 
     def _draw_episode_models(self) -> None:
         rng = self.np_random
@@ -163,7 +191,8 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
         if self._spec.nominal_spread:
             nominal = dict(self._spec.nominal)
             for k, sd in self._spec.nominal_spread.items():
-                nominal[k] = float(min(rng.normal(nominal[k], sd), self._spec.nominal_max))
+                nominal[k] = float(np.clip(rng.normal(nominal[k], sd), self._spec.nominal_min,
+                                           self._spec.nominal_max))
             self.nominal_model = self._make_model(nominal)
 
     # ----------------------------------------------------------------- cost and penalty

@@ -13,12 +13,15 @@ optimizer can differentiate.
 
 from __future__ import annotations
 
+import inspect
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, TypeVar
 
 import casadi as ca
 import numpy as np
+
+from gp_envs.physics.ranges import ParamRange, check_params
 
 OdeFn = Callable[[ca.SX, ca.SX, ca.SX], ca.SX]
 """Signature of a physics module's ``ode(x, u, p)``: state (n,), control (m,), params (k,)."""
@@ -161,7 +164,9 @@ class ControlModel:
         name: system name (``"cartpole"``, ``"quadrotor"``, ``"dubins"``).
         ode: the physics, ``ode(x, u, p) -> xdot`` in CasADi operations.
         param_names: names of the entries of ``p``, in order (the paper's symbols).
-        params: parameter values by name (read-only mapping).
+        params: parameter values by name (read-only mapping). Each must be a real number
+            inside its range in ``param_ranges``; construction (and so :meth:`with_params`)
+            raises ``ValueError`` otherwise, naming the parameter, its value and its range.
         state_names: (n,) names of the state components, in the paper's order.
         control_names: (m,) names of the control components.
         dt: control period in seconds (zero-order hold).
@@ -174,6 +179,9 @@ class ControlModel:
             or for a kinematic vehicle its actuated rates), as opposed to kinematic identities
             such as ``d(x)/dt = xdot`` that no parameter can make wrong. A learned residual
             belongs on these.
+        param_ranges: valid range of each parameter (:class:`~gp_envs.physics.ParamRange`,
+            read-only mapping). Default: the ``PARAM_RANGES`` table of the module that defines
+            ``ode`` (every :mod:`gp_envs.physics` module has one).
     """
 
     name: str
@@ -191,20 +199,25 @@ class ControlModel:
     substeps: int = 10
     angle_indices: tuple[int, ...] = ()
     dynamic_indices: tuple[int, ...] = ()
+    param_ranges: Mapping[str, ParamRange] | None = field(default=None, repr=False)
     _fns: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        unknown = set(self.params) - set(self.param_names)
-        missing = set(self.param_names) - set(self.params)
-        if unknown or missing:
-            raise ValueError(
-                f"{self.name}: parameters must be exactly {list(self.param_names)}; "
-                f"unknown {sorted(unknown)}, missing {sorted(missing)}"
-            )
-        for k, v in self.params.items():
-            if not np.isfinite(v):
-                raise ValueError(f"{self.name}: parameter {k}={v} is not finite")
-        object.__setattr__(self, "params", ReadOnlyMapping(self.params))
+        ranges = self.param_ranges
+        if ranges is None:
+            ranges = getattr(inspect.getmodule(self.ode), "PARAM_RANGES", None)
+            if ranges is None:
+                raise ValueError(f"{self.name}: pass param_ranges; the module of ode "
+                                 f"{getattr(self.ode, '__qualname__', self.ode)!r} has no "
+                                 f"PARAM_RANGES table")
+        if set(ranges) != set(self.param_names):
+            raise ValueError(f"{self.name}: param_ranges must cover exactly "
+                             f"{list(self.param_names)}, got {list(ranges)}")
+        ranges = {k: ranges[k] for k in self.param_names}
+        object.__setattr__(self, "param_ranges", ReadOnlyMapping(ranges))
+        # the one check of parameter values (see gp_envs.physics.ranges)
+        object.__setattr__(self, "params", ReadOnlyMapping(check_params(self.name, ranges,
+                                                                        self.params)))
 
     # ----------------------------------------------------------------- pickling
     def __getstate__(self) -> dict[str, Any]:
@@ -238,21 +251,24 @@ class ControlModel:
         return np.array([self.params[k] for k in self.param_names], dtype=float)
 
     def with_params(self, **overrides: float) -> ControlModel:
-        """A copy with some parameter values replaced (unknown names raise ``ValueError``)."""
+        """A copy with some parameter values replaced.
+
+        Raises:
+            ValueError: an unknown name, or a value outside its range in ``param_ranges``.
+        """
         unknown = set(overrides) - set(self.param_names)
         if unknown:
             raise ValueError(
                 f"{self.name}: unknown parameter(s) {sorted(unknown)}; "
                 f"known: {list(self.param_names)}"
             )
-        new = dict(self.params)
-        new.update({k: float(v) for k, v in overrides.items()})
+        new = {**self.params, **overrides}  # checked by the constructor
         return ControlModel(
             name=self.name, ode=self.ode, param_names=self.param_names, params=new,
             state_names=self.state_names, control_names=self.control_names, dt=self.dt,
             x_lb=self.x_lb, x_ub=self.x_ub, u_lb=self.u_lb, u_ub=self.u_ub, task=self.task,
             substeps=self.substeps, angle_indices=self.angle_indices,
-            dynamic_indices=self.dynamic_indices,
+            dynamic_indices=self.dynamic_indices, param_ranges=self.param_ranges,
         )
 
     # ----------------------------------------------------------------- CasADi functions

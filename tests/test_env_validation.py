@@ -5,6 +5,7 @@ from __future__ import annotations
 import copy
 import os
 import pickle
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -193,3 +194,157 @@ def test_pickles_evaluate_identically_in_a_fresh_process():
                 assert a[1] == b[1]
             else:
                 np.testing.assert_array_equal(a, b)
+
+
+# ------------------------------------------------------------------------ unphysical parameters
+# Invalid values stated here, from the physics (not read from the PARAM_RANGES tables): masses,
+# lengths, inertias and gravity > 0; damping >= 0; Dubins loss factors in [0, 1).
+_POSITIVE, _NONNEGATIVE, _LOSS = "(0, inf)", "[0, inf)", "[0, 1)"
+_RANGES = {
+    "gp_envs/CartPoleSwingUp-v0": {"mc": _POSITIVE, "mp": _POSITIVE, "l": _POSITIVE,
+                                   "b1": _NONNEGATIVE, "b2": _NONNEGATIVE, "g": _POSITIVE},
+    "gp_envs/Quadrotor-v0": {"m": _POSITIVE, "Jx": _POSITIVE, "Jy": _POSITIVE, "Jz": _POSITIVE,
+                             "L": _POSITIVE, "g": _POSITIVE},
+    "gp_envs/DubinsObstacle-v0": {"b1": _LOSS, "b2": _LOSS},
+}
+_OUTSIDE = {_POSITIVE: [0.0, -1.0, -1e-9], _NONNEGATIVE: [-1e-9, -0.3], _LOSS: [-0.1, 1.0, 1.5]}
+_INSIDE = {_POSITIVE: [1e-6, 3.0], _NONNEGATIVE: [0.0, 2.0], _LOSS: [0.0, 0.999]}
+_NOT_REAL = ["1.0", True, None, [1.0], np.array([1.0]), 1 + 0j]
+_NOT_FINITE = [np.nan, np.inf, -np.inf]
+
+_BAD_PARAMS = [(env_id, name, v) for env_id, table in _RANGES.items()
+               for name, rng in table.items() for v in _OUTSIDE[rng] + _NOT_FINITE]
+_GOOD_PARAMS = [(env_id, name, v) for env_id, table in _RANGES.items()
+                for name, rng in table.items() for v in _INSIDE[rng]]
+
+
+def _message(env_id: str, name: str, value: float) -> str:
+    """The message must name the parameter, its value and its valid range."""
+    rng = re.escape(_RANGES[env_id][name])
+    return rf"parameter {name} = {re.escape(repr(float(value)))} .*{rng}"
+
+
+def test_the_invalid_value_tables_cover_every_parameter():
+    from gp_envs.physics import cartpole, dubins, quadrotor
+
+    for env_id, module in zip(ENV_IDS, (cartpole, quadrotor, dubins), strict=True):
+        assert set(_RANGES[env_id]) == set(module.PARAM_NAMES) == set(module.PARAM_RANGES)
+        assert {k: str(r) for k, r in module.PARAM_RANGES.items()} == _RANGES[env_id]
+
+
+@pytest.mark.parametrize(("env_id", "name", "value"), _BAD_PARAMS)
+def test_unphysical_parameter_rejected_on_every_path(env_id, name, value):
+    nominal = make(env_id).unwrapped.nominal_model
+    match = _message(env_id, name, value)
+    with pytest.raises(ValueError, match=match if np.isfinite(value) else f"{name}.*finite"):
+        make(env_id, true_params={name: value})
+    with pytest.raises(ValueError, match=match if np.isfinite(value) else f"{name}.*finite"):
+        nominal.with_params(**{name: value})
+    fields = {k: getattr(nominal, k) for k in (
+        "name", "ode", "param_names", "state_names", "control_names", "dt", "x_lb", "x_ub",
+        "u_lb", "u_ub", "task", "substeps", "angle_indices", "dynamic_indices")}
+    with pytest.raises(ValueError, match=name):
+        gp_envs.ControlModel(**fields, params={**nominal.params, name: value})
+
+
+@pytest.mark.parametrize("value", _NOT_REAL, ids=repr)
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_non_numeric_parameter_rejected(env_id, value):
+    name = next(iter(_RANGES[env_id]))
+    with pytest.raises(ValueError, match=f"parameter {name} must be a real number"):
+        make(env_id, true_params={name: value})
+    with pytest.raises(ValueError, match=f"parameter {name} must be a real number"):
+        make(env_id).unwrapped.nominal_model.with_params(**{name: value})
+
+
+@pytest.mark.parametrize(("env_id", "name", "value"), _GOOD_PARAMS)
+def test_physical_parameter_at_the_edge_of_its_range_accepted(env_id, name, value):
+    env = make(env_id, true_params={name: value})
+    env.reset(seed=0)
+    assert gp_envs.oracle_model(env).params[name] == value
+    model = env.unwrapped.nominal_model.with_params(**{name: np.float32(value)})
+    assert model.params[name] == float(np.float32(value))
+    assert type(model.params[name]) is float
+
+
+def test_zero_length_or_mass_fails_at_make_not_at_the_first_step():
+    """These used to build and then diverge (division by zero) on the first step."""
+    with pytest.raises(ValueError, match=r"parameter l = 0\.0 .*\(0, inf\)"):
+        make("gp_envs/CartPoleSwingUp-v0", true_params={"l": 0})
+    with pytest.raises(ValueError, match=r"parameter m = 0\.0 .*\(0, inf\)"):
+        make("gp_envs/Quadrotor-v0", true_params={"m": 0})
+
+
+@pytest.mark.parametrize("value", ["0.1", True, False, None, -0.1, 1.0, 1.5, np.nan, np.inf,
+                                   [0.1], np.array([0.1]), 0.1j], ids=repr)
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_bad_randomize_rejected(env_id, value):
+    with pytest.raises(ValueError, match="randomize"):
+        make(env_id, randomize=value)
+
+
+@pytest.mark.parametrize("value", [0, 0.0, np.float32(0.25), np.float64(0.5), np.array(0.1),
+                                   0.999], ids=repr)
+def test_good_randomize_accepted(value):
+    env = make("gp_envs/CartPoleSwingUp-v0", randomize=value)
+    assert env.unwrapped.randomize == float(value) and type(env.unwrapped.randomize) is float
+    env.reset(seed=0)
+
+
+@pytest.mark.parametrize(("env_id", "params", "randomize"), [
+    ("gp_envs/DubinsObstacle-v0", {"b1": 0.95}, 0.1),     # 0.95 * 1.1 > 1
+    ("gp_envs/DubinsObstacle-v0", {"b2": 0.6}, 0.999),    # 0.6 * 1.999 > 1
+])
+def test_randomize_that_could_draw_an_unphysical_truth_is_rejected_at_make(
+        env_id, params, randomize):
+    with pytest.raises(ValueError, match=r"randomize=.*valid range \[0, 1\)"):
+        make(env_id, true_params=params, randomize=randomize)
+
+
+def test_randomized_draws_stay_in_range_and_in_the_spread():
+    """Near the edge of the range but inside it at both ends of the spread: never raises."""
+    env = make("gp_envs/DubinsObstacle-v0", true_params={"b1": 0.9, "b2": 0.0}, randomize=0.1)
+    draws = []
+    for seed in range(200):
+        env.reset(seed=seed)
+        draws.append(gp_envs.oracle_model(env).params["b1"])
+        assert gp_envs.oracle_model(env).params["b2"] == 0.0
+    assert 0.81 <= min(draws) < 0.83 and 0.97 < max(draws) < 0.99
+
+
+def test_dubins_nominal_draws_are_clipped_into_the_loss_range():
+    """N(0.3, 0.3) clipped to [0, 0.9]: the mass below 0 lands on 0, P(Z < -1) = 0.1587."""
+    env = make("gp_envs/DubinsObstacle-v0")
+    draws = []
+    for seed in range(600):
+        env.reset(seed=seed)
+        draws.append([env.unwrapped.nominal_model.params[k] for k in ("b1", "b2")])
+    draws = np.array(draws)
+    assert draws.min() == 0.0 and draws.max() <= 0.9
+    at_zero = np.mean(draws == 0.0)
+    assert abs(at_zero - 0.1587) < 3 * np.sqrt(0.1587 * 0.8413 / draws.size)
+
+
+def test_control_model_for_an_ode_without_a_range_table_needs_param_ranges():
+    from gp_envs.physics import ParamRange
+
+    nominal = make("gp_envs/DubinsObstacle-v0").unwrapped.nominal_model
+    fields = {k: getattr(nominal, k) for k in (
+        "name", "param_names", "state_names", "control_names", "dt", "x_lb", "x_ub", "u_lb",
+        "u_ub", "task", "substeps")}
+
+    def ode(x, u, p):  # defined in this test module, which has no PARAM_RANGES
+        return ca.vertcat(u[0], u[1], p[0] * p[1])
+
+    with pytest.raises(ValueError, match="param_ranges"):
+        gp_envs.ControlModel(**fields, ode=ode, params={"b1": 0.1, "b2": 0.2})
+    unit = ParamRange(0.0, 1.0, True, True, "a test weight, dimensionless")
+    ranges = {"b1": unit, "b2": unit}
+    model = gp_envs.ControlModel(**fields, ode=ode, params={"b1": 1.0, "b2": 0.0},
+                                 param_ranges=ranges)
+    np.testing.assert_array_equal(model.f(np.zeros(3), [2.0, 3.0]), [2.0, 3.0, 0.0])
+    with pytest.raises(ValueError, match=r"parameter b1 = 1\.5 .*\[0, 1\]"):
+        model.with_params(b1=1.5)
+    with pytest.raises(ValueError, match="cover exactly"):
+        gp_envs.ControlModel(**fields, ode=ode, params={"b1": 1.0, "b2": 0.0},
+                             param_ranges={"b1": unit})
