@@ -260,16 +260,21 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         """Advance one control period with the action held constant (zero-order hold).
 
+        Args:
+            action: (m,) controls in the action space's units; exactly that shape (a scalar,
+                an (m, 1) or a (1, m) array is an error, not reshaped).
+
         The action is clipped to the action space (``info["action_clipped"]`` says so); a NaN,
-        infinite or wrong-shaped action raises ``ValueError``.
+        infinite, non-numeric or wrong-shaped action raises ``ValueError``.
         """
-        a = np.asarray(action, dtype=float)
+        try:
+            a = np.asarray(action, dtype=float)
+        except (TypeError, ValueError):
+            raise ValueError(f"action must be an array of numbers of shape "
+                             f"{self.action_space.shape}, got {action!r}") from None
         if a.shape != self.action_space.shape:
-            if a.size == self.action_space.shape[0]:
-                a = a.reshape(self.action_space.shape)
-            else:
-                raise ValueError(f"action must have shape {self.action_space.shape}, "
-                                 f"got {np.shape(action)}")
+            raise ValueError(f"action must have shape {self.action_space.shape}, "
+                             f"got {a.shape}")
         if not np.all(np.isfinite(a)):
             raise ValueError(f"action must be finite, got {a}")
         u = np.clip(a, self.action_space.low, self.action_space.high)

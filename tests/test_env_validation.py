@@ -348,3 +348,68 @@ def test_control_model_for_an_ode_without_a_range_table_needs_param_ranges():
     with pytest.raises(ValueError, match="cover exactly"):
         gp_envs.ControlModel(**fields, ode=ode, params={"b1": 1.0, "b2": 0.0},
                              param_ranges={"b1": unit})
+
+
+# ------------------------------------------------------------------------ action shapes
+def _wrong_shapes(m: int) -> list[tuple[int, ...]]:
+    shapes = [(), (m, 1), (1, m), (m + 1,), (0,), (2, m)]
+    if m > 1:
+        shapes += [(m - 1,), (m // 2, 2)]
+    return list(dict.fromkeys(shapes))  # without repeats
+
+
+_SHAPE_CASES = [(env_id, shape) for env_id, m in zip(ENV_IDS, (1, 4, 2), strict=True)
+                for shape in _wrong_shapes(m)]
+
+
+@pytest.mark.parametrize(("env_id", "shape"), _SHAPE_CASES, ids=str)
+def test_wrong_action_shape_raises_and_leaves_the_env_unchanged(env_id, shape):
+    env = make(env_id)
+    env.reset(seed=0)
+    twin = copy.deepcopy(env)
+    mid = (env.action_space.low + env.action_space.high) / 2
+    bad = np.full(shape, mid.flat[0], dtype=np.float32)
+    with pytest.raises(ValueError, match=r"action must have shape \(\d\,\)"):
+        env.step(bad)
+    with pytest.raises(ValueError, match="shape"):
+        env.step(bad.tolist())
+    # the rejected calls did not advance the env: it steps on like an untouched copy
+    a, b = env.step(mid.astype(np.float32)), twin.step(mid.astype(np.float32))
+    np.testing.assert_array_equal(a[0], b[0])
+    assert a[1:] == b[1:]
+
+
+def test_quadrotor_2x2_action_is_not_flattened():
+    env = make("gp_envs/Quadrotor-v0")
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=r"shape \(4,\).*\(2, 2\)"):
+        env.step(np.full((2, 2), 2.45, np.float32))
+
+
+@pytest.mark.parametrize("action", [1.0, np.float32(1.0), np.array(1.0), [[1.0]]], ids=repr)
+def test_cartpole_scalar_action_raises(action):
+    env = make("gp_envs/CartPoleSwingUp-v0")
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="shape"):
+        env.step(action)
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_right_shape_as_list_or_float64_is_accepted_like_float32(env_id):
+    env = make(env_id)
+    env.reset(seed=0)
+    twin = copy.deepcopy(env)
+    a = _random_actions(env, 1, seed=3)[0]
+    got = env.step([float(v) for v in a])
+    want = twin.step(a)
+    np.testing.assert_array_equal(got[0], want[0])
+    assert got[1:] == want[1:]
+
+
+@pytest.mark.parametrize("action", ["abc", {"f": 1.0}, [1.0, "x"], None, object()], ids=repr)
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_non_numeric_action_raises_value_error(env_id, action):
+    env = make(env_id)
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="action must"):
+        env.step(action)
