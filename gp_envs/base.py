@@ -2,8 +2,9 @@
 
 A concrete env (one file each: :mod:`gp_envs.cartpole_swingup`, :mod:`gp_envs.quadrotor`,
 :mod:`gp_envs.dubins_obstacle`) declares its physics module, scenarios, bounds and task; this base
-class turns that into a Gymnasium env whose true parameters stay private and whose nominal model
-is public as ``env.unwrapped.nominal_model``.
+class turns that into a Gymnasium env whose controller API (observations, ``info``, rewards,
+frames, the nominal model ``env.unwrapped.nominal_model``) never hands out the true parameters;
+:class:`GPEnv` says precisely what is and is not hidden.
 """
 
 from __future__ import annotations
@@ -29,7 +30,8 @@ class Scenario:
 
     Attributes:
         description: one line, with the paper's table it comes from.
-        true: true parameter values by name (hidden from controllers).
+        true: true parameter values by name: public, as documentation of the experiment, but
+            never handed out through the controller API (see :class:`GPEnv`).
         nominal: nominal parameter values by name (what a controller may know).
         u_lb, u_ub: (m,) control bounds for this scenario.
         nominal_spread: per-parameter standard deviation of a per-episode Gaussian draw of the
@@ -54,6 +56,21 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
     Subclasses set the class attributes below and implement :meth:`_initial_state` and
     :meth:`_render_frame`; they may override :meth:`_observe` (e.g. to wrap angles) and
     :meth:`_violation` (e.g. obstacle contact).
+
+    What is hidden, precisely. The controller API -- :attr:`nominal_model`, observations,
+    ``info``, rewards and rendered frames -- never hands out a true parameter value, and it
+    depends on the true values only through the state, whose evolution is the true dynamics
+    (that is what a learner learns from): the nominal model is built from the scenario's
+    nominal values (or their per-episode draw), rewards and ``info`` from the observed state,
+    the nominal task and the action, frames from the state and the nominal model. The truth is
+    not secret beyond that: ``SCENARIOS[scenario].true`` is a public class attribute, the
+    documentation of the experiment like a paper's table; Gymnasium's ``env.spec.kwargs``
+    echoes the caller's ``true_params``; with ``randomize`` an episode's truth can be rebuilt
+    from its seed; private attributes hold it. The oracle is explicit:
+    :func:`gp_envs.oracle_model`, for upper-bound baselines only.
+
+    Envs pickle and deep-copy, RNG state included (a copy steps and resets like the
+    original; see :meth:`__getstate__`).
 
     Args:
         scenario: name of a scenario in :attr:`SCENARIOS`.
