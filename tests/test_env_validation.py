@@ -69,8 +69,10 @@ def test_copied_env_steps_and_redraws_identically(env_id, randomize, copier):
     for a in _random_actions(env, 3, seed=1):
         env.step(a)
     before = _episode_record(env)
+    env.action_space.seed(7)
     twin = COPIERS[copier](env)
     assert twin.unwrapped is not env.unwrapped
+    np.testing.assert_array_equal(twin.action_space.sample(), env.action_space.sample())
     assert twin.unwrapped.nominal_model is not env.unwrapped.nominal_model
     actions = _random_actions(env, 20, seed=2)
     expected = _trajectory(env, actions)  # the original first: a shared RNG or state would
