@@ -2,8 +2,9 @@
 
 A concrete env (one file each: :mod:`gp_envs.cartpole_swingup`, :mod:`gp_envs.quadrotor`,
 :mod:`gp_envs.dubins_obstacle`) declares its physics module, scenarios, bounds and task; this base
-class turns that into a Gymnasium env whose true parameters stay private and whose nominal model
-is public as ``env.unwrapped.nominal_model``.
+class turns that into a Gymnasium env whose controller API (observations, ``info``, rewards,
+frames, the nominal model ``env.unwrapped.nominal_model``) never hands out the true parameters;
+:class:`GPEnv` says precisely what is and is not hidden.
 """
 
 from __future__ import annotations
@@ -17,6 +18,10 @@ import numpy as np
 from gymnasium import spaces
 
 from gp_envs.model import ControlModel, Task
+from gp_envs.physics.ranges import ParamRange, check_value
+
+RANDOMIZE_RANGE = ParamRange(0.0, 1.0, True, False, "relative spread of the true parameters")
+"""Valid values of the ``randomize`` option (dimensionless)."""
 
 
 @dataclass(frozen=True)
@@ -25,12 +30,14 @@ class Scenario:
 
     Attributes:
         description: one line, with the paper's table it comes from.
-        true: true parameter values by name (hidden from controllers).
+        true: true parameter values by name: public, as documentation of the experiment, but
+            never handed out through the controller API (see :class:`GPEnv`).
         nominal: nominal parameter values by name (what a controller may know).
         u_lb, u_ub: (m,) control bounds for this scenario.
         nominal_spread: per-parameter standard deviation of a per-episode Gaussian draw of the
             nominal value around ``nominal`` (empty: nominal values are fixed).
-        nominal_max: upper clip of drawn nominal values (keeps e.g. ``1 - b`` positive).
+        nominal_min, nominal_max: clip of drawn nominal values to the parameters' valid range
+            (e.g. a loss factor ``b`` to ``[0, 0.9]`` so that ``1 - b`` stays positive).
     """
 
     description: str
@@ -39,6 +46,7 @@ class Scenario:
     u_lb: tuple[float, ...]
     u_ub: tuple[float, ...]
     nominal_spread: Mapping[str, float] = field(default_factory=dict)
+    nominal_min: float = -np.inf
     nominal_max: float = np.inf
 
 
@@ -49,12 +57,34 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
     :meth:`_render_frame`; they may override :meth:`_observe` (e.g. to wrap angles) and
     :meth:`_violation` (e.g. obstacle contact).
 
+    What is hidden, precisely. The controller API -- :attr:`nominal_model`, observations,
+    ``info``, rewards and rendered frames -- never hands out a true parameter value, and it
+    depends on the true values only through the state, whose evolution is the true dynamics
+    (that is what a learner learns from): the nominal model is built from the scenario's
+    nominal values (or their per-episode draw), rewards and ``info`` from the observed state,
+    the nominal task and the action, frames from the state and the nominal model. The truth is
+    not secret beyond that: ``SCENARIOS[scenario].true`` is a public class attribute, the
+    documentation of the experiment like a paper's table; Gymnasium's ``env.spec.kwargs``
+    echoes the caller's ``true_params``; with ``randomize`` an episode's truth can be rebuilt
+    from its seed; private attributes hold it. The oracle is explicit:
+    :func:`gp_envs.oracle_model`, for upper-bound baselines only.
+
+    Envs pickle and deep-copy, RNG state included (a copy steps and resets like the
+    original; see :meth:`__getstate__`).
+
     Args:
         scenario: name of a scenario in :attr:`SCENARIOS`.
         true_params: overrides of the scenario's true parameter values.
         randomize: relative spread of the true parameters per reset: each one is multiplied
-            by ``1 + U(-randomize, randomize)`` (``g`` is never randomized).
+            by ``1 + U(-randomize, randomize)`` (``g`` is never randomized). A real number in
+            ``[0, 1)`` (:data:`RANDOMIZE_RANGE`).
         render_mode: ``None``, ``"rgb_array"`` or ``"human"``.
+
+    Raises:
+        ValueError: an unknown scenario, render mode or parameter name; ``randomize`` not a
+            real number in ``[0, 1)`` (bools and strings included); a true parameter (after
+            the overrides, and at either end of the ``randomize`` spread) outside its valid
+            range in the physics module's ``PARAM_RANGES``.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array", "human"], "render_fps": 20}
@@ -83,11 +113,10 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, "
                              f"got {render_mode!r}")
-        if not (np.isfinite(randomize) and 0.0 <= randomize < 1.0):
-            raise ValueError(f"randomize must be in [0, 1), got {randomize}")
+        self.randomize = check_value(type(self).__name__, "randomize", randomize,
+                                     RANDOMIZE_RANGE)
         self.scenario = scenario
         self.render_mode = render_mode
-        self.randomize = float(randomize)
         spec = self.SCENARIOS[scenario]
         truth = dict(spec.true)
         if true_params:
@@ -95,10 +124,11 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
             if unknown:
                 raise ValueError(f"{type(self).__name__}: unknown parameter(s) {sorted(unknown)}; "
                                  f"known: {list(self.physics.PARAM_NAMES)}")
-            truth.update({k: float(v) for k, v in true_params.items()})
+            truth.update(true_params)
         self._spec = spec
-        self._base_truth = truth
-        self._plant = self._make_model(truth)
+        self._plant = self._make_model(truth)  # checks the true parameters' ranges
+        self._base_truth = dict(self._plant.params)
+        self._check_randomized_range()
         self.nominal_model: ControlModel = self._make_model(dict(spec.nominal))
         """What a controller may know: nominal parameters, dynamics, bounds, task."""
 
@@ -145,12 +175,27 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
             x_lb=np.asarray(self.X_LB, float), x_ub=np.asarray(self.X_UB, float),
             u_lb=np.asarray(self._spec.u_lb, float), u_ub=np.asarray(self._spec.u_ub, float),
             task=self._task(), substeps=self.SUBSTEPS, angle_indices=self.ANGLE_INDICES,
-            dynamic_indices=self.DYNAMIC_INDICES,
+            dynamic_indices=self.DYNAMIC_INDICES, param_ranges=self.physics.PARAM_RANGES,
         )
 
     def _oracle(self) -> ControlModel:
         """The true model of the current episode; only :func:`gp_envs.oracle_model` uses it."""
         return self._plant
+
+    def _check_randomized_range(self) -> None:
+        """Fail at construction, not at some later reset, if a randomized draw could leave a
+        parameter's valid range: models at both ends of the spread go through the check."""
+        if self.randomize == 0:
+            return
+        for sign in (-1.0, 1.0):
+            end = {k: v if k == "g" else v * (1.0 + sign * self.randomize)
+                   for k, v in self._base_truth.items()}
+            try:
+                self._make_model(end)
+            except ValueError as err:
+                raise ValueError(f"{type(self).__name__}: randomize={self.randomize} draws each "
+                                 f"true parameter v in [v (1 - randomize), v (1 + randomize)); "
+                                 f"at an end of that spread, {err}") from None
 
     def _draw_episode_models(self) -> None:
         rng = self.np_random
@@ -163,7 +208,8 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
         if self._spec.nominal_spread:
             nominal = dict(self._spec.nominal)
             for k, sd in self._spec.nominal_spread.items():
-                nominal[k] = float(min(rng.normal(nominal[k], sd), self._spec.nominal_max))
+                nominal[k] = float(np.clip(rng.normal(nominal[k], sd), self._spec.nominal_min,
+                                           self._spec.nominal_max))
             self.nominal_model = self._make_model(nominal)
 
     # ----------------------------------------------------------------- cost and penalty
@@ -231,16 +277,21 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         """Advance one control period with the action held constant (zero-order hold).
 
+        Args:
+            action: (m,) controls in the action space's units; exactly that shape (a scalar,
+                an (m, 1) or a (1, m) array is an error, not reshaped).
+
         The action is clipped to the action space (``info["action_clipped"]`` says so); a NaN,
-        infinite or wrong-shaped action raises ``ValueError``.
+        infinite, non-numeric or wrong-shaped action raises ``ValueError``.
         """
-        a = np.asarray(action, dtype=float)
+        try:
+            a = np.asarray(action, dtype=float)
+        except (TypeError, ValueError):
+            raise ValueError(f"action must be an array of numbers of shape "
+                             f"{self.action_space.shape}, got {action!r}") from None
         if a.shape != self.action_space.shape:
-            if a.size == self.action_space.shape[0]:
-                a = a.reshape(self.action_space.shape)
-            else:
-                raise ValueError(f"action must have shape {self.action_space.shape}, "
-                                 f"got {np.shape(action)}")
+            raise ValueError(f"action must have shape {self.action_space.shape}, "
+                             f"got {a.shape}")
         if not np.all(np.isfinite(a)):
             raise ValueError(f"action must be finite, got {a}")
         u = np.clip(a, self.action_space.low, self.action_space.high)
@@ -296,6 +347,18 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
             "action_clipped": clipped,
             "time": self._steps * self.DT,
         }
+
+    # ----------------------------------------------------------------- pickling
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickled (and deep-copied) state: everything but the render figure.
+
+        The copy has the same state, step counters, true and nominal models and RNG state
+        (so its next ``reset()`` draws the same parameters); its figure is created anew by its
+        first :meth:`render` (a matplotlib figure, or a window, is not part of the env).
+        """
+        state = self.__dict__.copy()
+        state["_fig"] = None
+        return state
 
     # ----------------------------------------------------------------- rendering
     def render(self) -> np.ndarray | None:

@@ -13,15 +13,48 @@ optimizer can differentiate.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+import inspect
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
-from types import MappingProxyType
+from typing import Any, TypeVar
 
 import casadi as ca
 import numpy as np
 
+from gp_envs.physics.ranges import ParamRange, check_params
+
 OdeFn = Callable[[ca.SX, ca.SX, ca.SX], ca.SX]
 """Signature of a physics module's ``ode(x, u, p)``: state (n,), control (m,), params (k,)."""
+
+_V = TypeVar("_V")
+
+
+class ReadOnlyMapping(Mapping[str, _V]):
+    """An immutable ``str -> value`` mapping that, unlike ``types.MappingProxyType``, pickles.
+
+    It holds its own copy of the items: changing the mapping it was built from changes nothing,
+    and it has no method that changes it (item assignment raises ``TypeError``).
+    """
+
+    __slots__ = ("_items",)
+
+    def __init__(self, items: Mapping[str, _V]) -> None:
+        self._items: dict[str, _V] = dict(items)
+
+    def __getitem__(self, key: str) -> _V:
+        return self._items[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._items)
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({self._items!r})"
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (type(self), (self._items,))
 
 
 @dataclass(frozen=True)
@@ -124,11 +157,16 @@ class Task:
 class ControlModel:
     """A physical model with one set of parameter values, bounds and a task.
 
+    Immutable; it pickles and deep-copies (the compiled CasADi functions it caches are not
+    copied but rebuilt on first use, so a copy evaluates exactly like the original).
+
     Attributes:
         name: system name (``"cartpole"``, ``"quadrotor"``, ``"dubins"``).
         ode: the physics, ``ode(x, u, p) -> xdot`` in CasADi operations.
         param_names: names of the entries of ``p``, in order (the paper's symbols).
-        params: parameter values by name (read-only mapping).
+        params: parameter values by name (read-only mapping). Each must be a real number
+            inside its range in ``param_ranges``; construction (and so :meth:`with_params`)
+            raises ``ValueError`` otherwise, naming the parameter, its value and its range.
         state_names: (n,) names of the state components, in the paper's order.
         control_names: (m,) names of the control components.
         dt: control period in seconds (zero-order hold).
@@ -141,6 +179,9 @@ class ControlModel:
             or for a kinematic vehicle its actuated rates), as opposed to kinematic identities
             such as ``d(x)/dt = xdot`` that no parameter can make wrong. A learned residual
             belongs on these.
+        param_ranges: valid range of each parameter (:class:`~gp_envs.physics.ParamRange`,
+            read-only mapping). Default: the ``PARAM_RANGES`` table of the module that defines
+            ``ode`` (every :mod:`gp_envs.physics` module has one).
     """
 
     name: str
@@ -158,20 +199,40 @@ class ControlModel:
     substeps: int = 10
     angle_indices: tuple[int, ...] = ()
     dynamic_indices: tuple[int, ...] = ()
+    param_ranges: Mapping[str, ParamRange] | None = field(default=None, repr=False)
     _fns: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        unknown = set(self.params) - set(self.param_names)
-        missing = set(self.param_names) - set(self.params)
-        if unknown or missing:
-            raise ValueError(
-                f"{self.name}: parameters must be exactly {list(self.param_names)}; "
-                f"unknown {sorted(unknown)}, missing {sorted(missing)}"
-            )
-        for k, v in self.params.items():
-            if not np.isfinite(v):
-                raise ValueError(f"{self.name}: parameter {k}={v} is not finite")
-        object.__setattr__(self, "params", MappingProxyType(dict(self.params)))
+        ranges = self.param_ranges
+        if ranges is None:
+            ranges = getattr(inspect.getmodule(self.ode), "PARAM_RANGES", None)
+            if ranges is None:
+                raise ValueError(f"{self.name}: pass param_ranges; the module of ode "
+                                 f"{getattr(self.ode, '__qualname__', self.ode)!r} has no "
+                                 f"PARAM_RANGES table")
+        if set(ranges) != set(self.param_names):
+            raise ValueError(f"{self.name}: param_ranges must cover exactly "
+                             f"{list(self.param_names)}, got {list(ranges)}")
+        ranges = {k: ranges[k] for k in self.param_names}
+        object.__setattr__(self, "param_ranges", ReadOnlyMapping(ranges))
+        # the one check of parameter values (see gp_envs.physics.ranges)
+        object.__setattr__(self, "params", ReadOnlyMapping(check_params(self.name, ranges,
+                                                                        self.params)))
+
+    # ----------------------------------------------------------------- pickling
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickled state: every field except the cache of compiled CasADi functions.
+
+        The cache is rebuilt on first use after unpickling (or ``copy.deepcopy``), so a copy
+        never depends on whether, or how, CasADi serializes a compiled function.
+        """
+        state = self.__dict__.copy()
+        state["_fns"] = {}
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self.__dict__["_fns"] = {}
 
     # ----------------------------------------------------------------- sizes and parameters
     @property
@@ -190,21 +251,24 @@ class ControlModel:
         return np.array([self.params[k] for k in self.param_names], dtype=float)
 
     def with_params(self, **overrides: float) -> ControlModel:
-        """A copy with some parameter values replaced (unknown names raise ``ValueError``)."""
+        """A copy with some parameter values replaced.
+
+        Raises:
+            ValueError: an unknown name, or a value outside its range in ``param_ranges``.
+        """
         unknown = set(overrides) - set(self.param_names)
         if unknown:
             raise ValueError(
                 f"{self.name}: unknown parameter(s) {sorted(unknown)}; "
                 f"known: {list(self.param_names)}"
             )
-        new = dict(self.params)
-        new.update({k: float(v) for k, v in overrides.items()})
+        new = {**self.params, **overrides}  # checked by the constructor
         return ControlModel(
             name=self.name, ode=self.ode, param_names=self.param_names, params=new,
             state_names=self.state_names, control_names=self.control_names, dt=self.dt,
             x_lb=self.x_lb, x_ub=self.x_ub, u_lb=self.u_lb, u_ub=self.u_ub, task=self.task,
             substeps=self.substeps, angle_indices=self.angle_indices,
-            dynamic_indices=self.dynamic_indices,
+            dynamic_indices=self.dynamic_indices, param_ranges=self.param_ranges,
         )
 
     # ----------------------------------------------------------------- CasADi functions

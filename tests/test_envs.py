@@ -308,8 +308,8 @@ def _public_values(obj, depth=0, seen=None):
                 yield from _public_values(v, depth + 1, seen)
 
 
-def _visible_values(env, skip_spec):
-    obs, info = env.reset(seed=0)
+def _visible_values(env, skip_spec, seed=0):
+    obs, info = env.reset(seed=seed)
     values = list(_public_values(obs)) + list(_public_values(info))
     for _ in range(5):
         obs, r, _te, _tr, info = env.step(env.action_space.sample())
@@ -347,6 +347,55 @@ def test_randomized_truth_is_hidden_everywhere(env_id):
 
 def secret_names(env_id):
     return list(_SECRET[env_id])
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_overridden_and_randomized_truth_never_reaches_the_controller_api(env_id):
+    """With ``true_params`` and ``randomize`` together, over several episodes: no true value of
+    the episode is in an observation, ``info``, a reward, a public attribute (``spec`` and the
+    class's public scenario table included: the randomized truth is in neither), and the nominal
+    model is not the truth."""
+    env = gym.make(env_id, true_params=_SECRET[env_id], randomize=0.05)
+    table = list(_public_values(type(env.unwrapped).SCENARIOS))
+    for seed in range(3):
+        values = _visible_values(env, skip_spec=False, seed=seed) + table
+        truth = gp_envs.oracle_model(env)
+        nominal = env.unwrapped.nominal_model
+        assert nominal is not truth
+        for name, v in truth.params.items():
+            if name == "g":  # never randomized, and the same in the nominal model by design
+                continue
+            assert not np.any(np.isclose(values, v, rtol=1e-9, atol=0)), (seed, name)
+            assert nominal.params[name] != v, (seed, name)
+        # the episode's truth really is drawn around the overrides
+        for name, v in _SECRET[env_id].items():
+            assert truth.params[name] != v and abs(truth.params[name] / v - 1) <= 0.05
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_what_the_controller_gets_does_not_depend_on_the_truth(env_id):
+    """Two envs that differ only in their true parameters, from the same state: the same nominal
+    model, spaces, ``info``, frame and reward; only the next state shows the different truth."""
+    kwargs = dict(randomize=0.1, render_mode="rgb_array")  # same RNG use for the nominal draws
+    envs = [gym.make(env_id, **kwargs), gym.make(env_id, true_params=_SECRET[env_id], **kwargs)]
+    state = np.asarray(envs[0].reset(seed=0)[0], float)
+    resets = [env.reset(seed=4, options={"state": state}) for env in envs]
+    a, b = (env.unwrapped for env in envs)
+    assert dict(gp_envs.oracle_model(envs[0]).params) != dict(gp_envs.oracle_model(envs[1]).params)
+    assert dict(a.nominal_model.params) == dict(b.nominal_model.params)
+    for key in ("goal", "Q", "R", "Qf", "u_ref", "goal_tolerance"):
+        np.testing.assert_array_equal(getattr(a.nominal_model.task, key),
+                                      getattr(b.nominal_model.task, key))
+    assert a.action_space == b.action_space and a.observation_space == b.observation_space
+    np.testing.assert_array_equal(resets[0][0], resets[1][0])
+    assert resets[0][1] == resets[1][1]
+    np.testing.assert_array_equal(envs[0].render(), envs[1].render())
+    action = ((a.action_space.low + a.action_space.high) / 2).astype(np.float32)
+    steps = [env.step(action) for env in envs]
+    assert steps[0][1] == steps[1][1]  # reward: from the observed state, the nominal task, u
+    assert not np.array_equal(steps[0][0], steps[1][0])  # the dynamics are the true ones
+    for env in envs:
+        env.close()
 
 
 def test_oracle_model_rejects_other_envs():

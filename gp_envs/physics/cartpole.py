@@ -16,9 +16,21 @@ from __future__ import annotations
 
 import casadi as ca
 
-PARAM_NAMES = ("mc", "mp", "l", "b1", "b2", "g")
-"""Cart mass (kg), pole mass (kg), pole length (m), ground damping (N s/m), pivot damping
-(N m s/rad), gravity (m/s^2)."""
+from gp_envs.physics.ranges import ParamRange
+
+PARAM_RANGES: dict[str, ParamRange] = {
+    "mc": ParamRange.positive("cart mass, kg"),
+    "mp": ParamRange.positive("pole mass, kg"),
+    "l": ParamRange.positive("pole length (pivot to point mass), m"),
+    "b1": ParamRange.nonnegative("ground damping, N s/m"),
+    "b2": ParamRange.nonnegative("pivot damping, N m s/rad"),
+    "g": ParamRange.positive("gravity, m/s^2"),
+}
+"""Meaning, unit and valid range of each parameter, in the order of ``p``. Masses and the length
+must be positive (``mp l`` and ``l d`` divide the accelerations); negative damping would be an
+energy source (errata note 1); ``g > 0`` keeps ``theta = 0`` hanging down."""
+PARAM_NAMES = tuple(PARAM_RANGES)
+"""``("mc", "mp", "l", "b1", "b2", "g")``, see :data:`PARAM_RANGES`."""
 STATE_NAMES = ("x", "theta", "xdot", "thetadot")
 """Cart position (m), pole angle (rad, 0 down), their rates (m/s, rad/s)."""
 CONTROL_NAMES = ("f",)

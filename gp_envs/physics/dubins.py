@@ -14,8 +14,17 @@ from __future__ import annotations
 
 import casadi as ca
 
-PARAM_NAMES = ("b1", "b2")
-"""Speed loss and turn-rate loss (dimensionless, < 1)."""
+from gp_envs.physics.ranges import ParamRange
+
+PARAM_RANGES: dict[str, ParamRange] = {
+    "b1": ParamRange(0.0, 1.0, True, False, "speed loss factor, dimensionless"),
+    "b2": ParamRange(0.0, 1.0, True, False, "turn-rate loss factor, dimensionless"),
+}
+"""Meaning, unit and valid range of each parameter, in the order of ``p``. A loss factor is in
+``[0, 1)``: ``1 - b`` stays positive (errata note 2) and ``b < 0`` would deliver more than the
+command."""
+PARAM_NAMES = tuple(PARAM_RANGES)
+"""``("b1", "b2")``, see :data:`PARAM_RANGES`."""
 STATE_NAMES = ("x", "y", "psi")
 """Position (m) and heading (rad, from the x axis)."""
 CONTROL_NAMES = ("u1", "u2")

@@ -19,8 +19,21 @@ from __future__ import annotations
 
 import casadi as ca
 
-PARAM_NAMES = ("m", "Jx", "Jy", "Jz", "L", "g")
-"""Mass (kg), inertias (kg m^2), arm length (m), gravity (m/s^2)."""
+from gp_envs.physics.ranges import ParamRange
+
+PARAM_RANGES: dict[str, ParamRange] = {
+    "m": ParamRange.positive("mass, kg"),
+    "Jx": ParamRange.positive("roll inertia, kg m^2"),
+    "Jy": ParamRange.positive("pitch inertia, kg m^2"),
+    "Jz": ParamRange.positive("yaw inertia, kg m^2"),
+    "L": ParamRange.positive("arm length (centre to rotor), m"),
+    "g": ParamRange.positive("gravity, m/s^2"),
+}
+"""Meaning, unit and valid range of each parameter, in the order of ``p``: all positive (the
+mass and the inertias divide the accelerations, a zero arm has no torque, ``g > 0`` is down
+in NED). Each value is checked on its own: the inertias' triangle inequality is not."""
+PARAM_NAMES = tuple(PARAM_RANGES)
+"""``("m", "Jx", "Jy", "Jz", "L", "g")``, see :data:`PARAM_RANGES`."""
 STATE_NAMES = ("x", "y", "z", "phi", "theta", "psi",
                "xdot", "ydot", "zdot", "phidot", "thetadot", "psidot")
 """Position (m, NED), roll/pitch/yaw (rad), their rates (m/s, rad/s)."""
