@@ -12,10 +12,10 @@ delivers ``(1 - b1) u1`` and ``(1 - b2) u2``. Actions outside are clipped.
 
 ## Scenario "paper"
 True ``b1 = b2 = 0.3`` (hidden). The nominal values are drawn anew at every reset from
-``N(0.3, 0.3)`` (0.3 read as a standard deviation) and clipped to ``[0, 0.9]``, inside a loss
-factor's valid range ``[0, 1)`` (``1 - b`` stays positive; about 16% of the draws fall below 0
-and become 0): ``env.unwrapped.nominal_model`` changes at every reset, so build or refresh a
-controller after ``reset``.
+``N(0.3, 0.3)`` (0.3 read as a standard deviation) and clipped above at 0.9, so that ``1 - b``
+stays positive (errata note 2; about 16% of the draws fall below 0, an actuator believed
+stronger than its command): ``env.unwrapped.nominal_model`` changes at every reset, so build
+or refresh a controller after ``reset``.
 
 ## Task, reward, episode
 From ``(5, 5)``, heading at the goal, to ``(2, -2)``; the obstacle of radius 2 is centred at
@@ -54,7 +54,7 @@ class DubinsObstacleEnv(GPEnv):
             description="paper, obstacle avoidance: true b = 0.3, nominal b ~ N(0.3, 0.3)",
             true={"b1": 0.3, "b2": 0.3}, nominal={"b1": 0.3, "b2": 0.3},
             u_lb=(0.0, -2.0), u_ub=(2.0, 2.0),
-            nominal_spread={"b1": 0.3, "b2": 0.3}, nominal_min=0.0, nominal_max=0.9),
+            nominal_spread={"b1": 0.3, "b2": 0.3}, nominal_max=0.9),
     }
     DEFAULT_SCENARIO = "paper"
     DT = 0.1

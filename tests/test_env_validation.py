@@ -200,8 +200,8 @@ def test_pickles_evaluate_identically_in_a_fresh_process():
 
 # ------------------------------------------------------------------------ unphysical parameters
 # Invalid values stated here, from the physics (not read from the PARAM_RANGES tables): masses,
-# lengths, inertias and gravity > 0; damping >= 0; Dubins loss factors in [0, 1).
-_POSITIVE, _NONNEGATIVE, _LOSS = "(0, inf)", "[0, inf)", "[0, 1)"
+# lengths, inertias and gravity > 0; damping >= 0; Dubins loss factors < 1 (1 - b > 0).
+_POSITIVE, _NONNEGATIVE, _LOSS = "(0, inf)", "[0, inf)", "(-inf, 1)"
 _RANGES = {
     "gp_envs/CartPoleSwingUp-v0": {"mc": _POSITIVE, "mp": _POSITIVE, "l": _POSITIVE,
                                    "b1": _NONNEGATIVE, "b2": _NONNEGATIVE, "g": _POSITIVE},
@@ -209,8 +209,8 @@ _RANGES = {
                              "L": _POSITIVE, "g": _POSITIVE},
     "gp_envs/DubinsObstacle-v0": {"b1": _LOSS, "b2": _LOSS},
 }
-_OUTSIDE = {_POSITIVE: [0.0, -1.0, -1e-9], _NONNEGATIVE: [-1e-9, -0.3], _LOSS: [-0.1, 1.0, 1.5]}
-_INSIDE = {_POSITIVE: [1e-6, 3.0], _NONNEGATIVE: [0.0, 2.0], _LOSS: [0.0, 0.999]}
+_OUTSIDE = {_POSITIVE: [0.0, -1.0, -1e-9], _NONNEGATIVE: [-1e-9, -0.3], _LOSS: [1.0, 1.5]}
+_INSIDE = {_POSITIVE: [1e-6, 3.0], _NONNEGATIVE: [0.0, 2.0], _LOSS: [-0.5, 0.0, 0.999]}
 _NOT_REAL = ["1.0", True, None, [1.0], np.array([1.0]), 1 + 0j]
 _NOT_FINITE = [np.nan, np.inf, -np.inf]
 
@@ -299,7 +299,7 @@ def test_good_randomize_accepted(value):
 ])
 def test_randomize_that_could_draw_an_unphysical_truth_is_rejected_at_make(
         env_id, params, randomize):
-    with pytest.raises(ValueError, match=r"randomize=.*valid range \[0, 1\)"):
+    with pytest.raises(ValueError, match=r"randomize=.*valid range \(-inf, 1\)"):
         make(env_id, true_params=params, randomize=randomize)
 
 
@@ -314,17 +314,18 @@ def test_randomized_draws_stay_in_range_and_in_the_spread():
     assert 0.81 <= min(draws) < 0.83 and 0.97 < max(draws) < 0.99
 
 
-def test_dubins_nominal_draws_are_clipped_into_the_loss_range():
-    """N(0.3, 0.3) clipped to [0, 0.9]: the mass below 0 lands on 0, P(Z < -1) = 0.1587."""
+def test_dubins_nominal_draws_are_clipped_below_one():
+    """N(0.3, 0.3) clipped above at 0.9: 1 - b stays positive; P(b < 0) = P(Z < -1) = 0.1587
+    of the draws believe in an actuator stronger than its command."""
     env = make("gp_envs/DubinsObstacle-v0")
     draws = []
     for seed in range(600):
         env.reset(seed=seed)
         draws.append([env.unwrapped.nominal_model.params[k] for k in ("b1", "b2")])
     draws = np.array(draws)
-    assert draws.min() == 0.0 and draws.max() <= 0.9
-    at_zero = np.mean(draws == 0.0)
-    assert abs(at_zero - 0.1587) < 3 * np.sqrt(0.1587 * 0.8413 / draws.size)
+    assert draws.max() == 0.9 and draws.min() < 0.0
+    below = np.mean(draws < 0.0)
+    assert abs(below - 0.1587) < 3 * np.sqrt(0.1587 * 0.8413 / draws.size)
 
 
 def test_control_model_for_an_ode_without_a_range_table_needs_param_ranges():

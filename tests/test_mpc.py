@@ -349,7 +349,8 @@ def test_episodic_oracle_plan_is_what_the_quadrotor_plant_does():
     U = np.array([plan.action(k, truth.u_lb, truth.u_ub) for k in range(120)])
     stepped = np.array([truth.step(X[k], U[k]) for k in range(120)])
     assert np.max(np.abs(stepped - X[1:])) < 1e-6
-    assert np.all(X <= truth.x_ub + 1e-9) and np.all(X >= truth.x_lb - 1e-9)
+    lb, ub = truth.x_lb - 1e-9, truth.x_ub + 1e-9
+    assert np.all((lb <= X) & (ub >= X))
 
 
 def test_agent_follows_a_redrawn_nominal_model_without_rebuilding():
