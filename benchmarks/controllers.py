@@ -22,6 +22,9 @@ Speed variants of ``ssgp-mpc`` (:data:`SPEED_VARIANTS`, presets ``speed-options`
 (``input_indices="model"``), ``ssgp-mpc-linearized`` (``learned_dynamics="linearized"``) and
 ``ssgp-mpc-linearized-model-inputs`` (both).
 
+Real-time-iteration variants (:data:`RTI_VARIANTS`, preset ``rti``): ``nominal-mpc-rti``,
+``oracle-mpc-rti``, ``ssgp-mpc-rti`` (``scheme="rti"``; the SSGP one with the GP linearized).
+
 RL recipes load the shipped stable-baselines3 policies from ``benchmarks/models/<env>/<algo>/``
 (:class:`gp_agents.rl.RLAgent`); a missing model (or one trained for another scenario) makes the
 controller *unavailable* for that env, which the runner records instead of crashing.
@@ -156,9 +159,30 @@ SPEED_VARIANTS: dict[str, ControllerRecipe] = dict([
 step time), compared by the ``speed-options`` and ``linearized`` presets."""
 
 
+def _rti(base: str, label: str, description: str, learner: str | None = None,
+         oracle: bool = False, **settings: Any) -> tuple[str, ControllerRecipe]:
+    name = f"{base}-mpc-rti"
+    return name, ControllerRecipe(
+        name, f"{label} MPC, RTI", "mpc", description, learner=learner, oracle=oracle,
+        learn_online=learner is not None, settings=(("scheme", "rti"), *settings.items()))
+
+
+RTI_VARIANTS: dict[str, ControllerRecipe] = dict([
+    _rti("nominal", "nominal", "nominal-mpc with a real-time iteration (scheme='rti': one "
+         "Gauss-Newton SQP step per period after a converged cold start)"),
+    _rti("oracle", "oracle", "oracle-mpc with a real-time iteration (scheme='rti')",
+         oracle=True),
+    _rti("ssgp", "SSGP", "ssgp-mpc with a real-time iteration (scheme='rti'), the GP "
+         "linearized per node at the shifted plan (learned_dynamics='linearized')",
+         learner="ssgp", learned_dynamics="linearized"),
+])
+"""Real-time-iteration variants (issue: RTI), compared by the ``rti`` preset."""
+
+
 CONTROLLERS: dict[str, ControllerRecipe] = {
     **_mpc_recipes(),
     **SPEED_VARIANTS,
+    **RTI_VARIANTS,
     "sac": ControllerRecipe("sac", "SAC", "rl", "shipped stable-baselines3 SAC policy",
                             algo="sac"),
     "ppo": ControllerRecipe("ppo", "PPO", "rl", "shipped stable-baselines3 PPO policy",

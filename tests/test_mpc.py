@@ -425,3 +425,39 @@ def test_learner_trained_against_one_nominal_model_is_not_silently_reused_with_a
     obs, _ = env.reset(seed=1)  # redraws the nominal model
     with pytest.raises(RuntimeError, match="pretrain"):
         agent.act(obs)
+
+
+# ------------------------------------------------------------------------ real-time iteration
+def test_a_kkt_point_is_a_fixed_point_of_the_rti_step():
+    """The Gauss-Newton QP step from a converged plan (no shift) does not move it: dw = 0 at a
+    KKT point, so RTI tracks the converged solution."""
+    env = gym.make(CART, scenario="gp")
+    obs, _ = env.reset(seed=0)
+    agent = PseudospectralMPC.from_env(env, scheme="rti")
+    agent.act(obs)  # the cold start: a converged solve
+    sol, planner = agent.plan.solution, agent.planner
+    assert sol.success and sol.status == "Solve_Succeeded"
+    w, _, violation, _, _ = planner._qp_step(sol.nlp_x, planner.planning.param_values())
+    np.testing.assert_allclose(np.asarray(w).ravel(), sol.nlp_x, atol=1e-5)
+    assert float(violation) < 1e-6
+
+
+def test_rti_tracks_the_converged_mpc_and_its_safety_net_falls_back_to_it():
+    env = gym.make(CART, scenario="gp")
+    converged = rollout(env, PseudospectralMPC.from_env(env), 0)
+    agent = PseudospectralMPC.from_env(env, scheme="rti")
+    rti = rollout(env, agent, 0)
+    d = agent.diagnostics_arrays()
+    steps = d["status"] == "RTI"
+    assert rti.success and steps.sum() > 100 and agent.planner.n_rti_rejected < 15
+    assert np.all(d["iterations"][steps] == 1)
+    assert rti.cost == pytest.approx(converged.cost, rel=0.02)
+    # every step rejected (a tolerance no step meets): the converged solve from the same
+    # shifted plan, warm-started with the multipliers
+    strict = PseudospectralMPC.from_env(env, scheme="rti")
+    strict._planner().max_violation = -1.0
+    fallback = rollout(env, strict, 0)
+    assert strict.planner.n_rti_rejected == strict.planner.n_rti_steps == 119
+    assert fallback.cost == pytest.approx(converged.cost, rel=1e-3)
+    with pytest.raises(ValueError, match="scheme"):
+        PseudospectralMPC.from_env(env, scheme="sometimes")

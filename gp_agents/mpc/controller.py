@@ -34,7 +34,14 @@ from gp_agents.mpc.learned_term import LearnedTerm, NoLearnedTerm
 from gp_agents.mpc.ocp import Constraints
 from gp_agents.mpc.planner import Plan, Planner
 from gp_agents.mpc.planning_model import PlanningModel
-from gp_agents.mpc.schedule import DEFAULT_SETTINGS, EPISODIC_SETTINGS, Episodic, RecedingHorizon
+from gp_agents.mpc.rti import RTIPlanner
+from gp_agents.mpc.schedule import (
+    DEFAULT_SETTINGS,
+    EPISODIC_SETTINGS,
+    RTI_QP_SOLVER,
+    Episodic,
+    RecedingHorizon,
+)
 from gp_agents.residual import ResidualModel
 from gp_envs.model import ControlModel
 
@@ -68,6 +75,10 @@ class PseudospectralMPC:
         solver, solver_options, jit: the NLP solver (:class:`~gp_agents.mpc.planner.Planner`).
         max_iterations: iteration cap of one solve; the only cap (no wall-clock limit).
         state_margin, state_penalty, obstacle_margin: :class:`~gp_agents.mpc.ocp.Constraints`.
+        scheme: ``"converged"`` (every plan solved to convergence) or ``"rti"`` (a converged
+            solve at a cold start, then one Gauss-Newton SQP step per replan:
+            :class:`~gp_agents.mpc.rti.RTIPlanner`).
+        qp_solver: the RTI step's QP solver (default per system, :data:`RTI_QP_SOLVER`).
     """
 
     def __init__(self, model: ControlModel, learner: Any | None = None, *,
@@ -80,7 +91,9 @@ class PseudospectralMPC:
                  learned_dynamics: str | LearnedTerm = "exact", solver: str = "ipopt",
                  solver_options: Mapping[str, Any] | None = None, max_iterations: int = 500,
                  state_margin: float = 0.05, state_penalty: float | None = 1e4,
-                 obstacle_margin: float = 0.1, jit: bool = False) -> None:
+                 obstacle_margin: float = 0.1, jit: bool = False,
+                 scheme: Literal["converged", "rti"] = "converged",
+                 qp_solver: str | None = None) -> None:
         if not isinstance(model, ControlModel):
             raise TypeError(f"model must be a gp_envs ControlModel, got {type(model).__name__}")
         if mode == "receding":
@@ -99,6 +112,10 @@ class PseudospectralMPC:
                                      else n_nodes)
         else:
             raise ValueError(f"mode must be 'receding' or 'episodic', got {mode!r}")
+        if scheme not in ("converged", "rti"):
+            raise ValueError(f"scheme must be 'converged' or 'rti', got {scheme!r}")
+        self.scheme = scheme
+        self.qp_solver = qp_solver or RTI_QP_SOLVER.get(model.name, "osqp")
         if isinstance(learned_dynamics, str):
             if learned_dynamics not in LEARNED_TERMS:
                 raise ValueError(f"learned_dynamics must be one of {list(LEARNED_TERMS)} or a "
@@ -214,10 +231,11 @@ class PseudospectralMPC:
         size = self.term.param_values().size  # raises RuntimeError for an unfitted learner
         planning = self.planner.planning if self.planner is not None else None
         if planning is None or size != planning.n_params - planning.n_nominal:
-            self.planner = Planner(PlanningModel(self.model, self.residual, self.term),
-                                   self.mesh, self.constraints, solver=self.solver,
-                                   solver_options=self.solver_options,
-                                   max_iterations=self.max_iterations, jit=self.jit)
+            extra = {"qp_solver": self.qp_solver} if self.scheme == "rti" else {}
+            self.planner = (RTIPlanner if self.scheme == "rti" else Planner)(
+                PlanningModel(self.model, self.residual, self.term), self.mesh,
+                self.constraints, solver=self.solver, solver_options=self.solver_options,
+                max_iterations=self.max_iterations, jit=self.jit, **extra)
             self.n_builds += 1
         return self.planner
 

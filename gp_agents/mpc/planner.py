@@ -31,7 +31,12 @@ import numpy as np
 
 from gp_agents.mpc.ocp import Constraints, Mesh, build_ocp
 from gp_agents.mpc.planning_model import PlanningModel
-from gp_agents.pseudospectral import GaussPseudospectralSolver, InitialGuess, OCPSolution
+from gp_agents.pseudospectral import (
+    IPOPT_WARM_START_OPTIONS,
+    GaussPseudospectralSolver,
+    InitialGuess,
+    OCPSolution,
+)
 
 __all__ = ["CAPPED_STATUSES", "Plan", "Planner"]
 
@@ -89,16 +94,23 @@ class Planner:
             defaults; ``max_iterations`` is IPOPT's ``max_iter`` unless given there.
         max_iterations: iteration cap of one solve (deterministic).
         jit: compile the NLP's functions (CasADi JIT).
+        warm_start_duals: a warm solve also starts from the previous plan's multipliers, with
+            IPOPT's warm-start options (:data:`gp_agents.pseudospectral.IPOPT_WARM_START_OPTIONS`).
     """
 
     def __init__(self, planning: PlanningModel, mesh: Mesh, constraints: Constraints, *,
                  solver: str = "ipopt", solver_options: Mapping[str, Any] | None = None,
-                 max_iterations: int = 500, jit: bool = False) -> None:
+                 max_iterations: int = 500, jit: bool = False,
+                 warm_start_duals: bool = False) -> None:
         if int(max_iterations) < 1:
             raise ValueError(f"max_iterations must be >= 1, got {max_iterations}")
         self.planning, self.mesh, self.constraints = planning, mesh, constraints
+        self.warm_start_duals = bool(warm_start_duals) and solver == "ipopt"
         options = {key: (dict(v) if isinstance(v, Mapping) else v)
                    for key, v in (solver_options or {}).items()}
+        if self.warm_start_duals:
+            for key, value in IPOPT_WARM_START_OPTIONS["ipopt"].items():
+                options.setdefault("ipopt", {}).setdefault(key, value)
         if solver == "ipopt":
             options.setdefault("ipopt", {}).setdefault("max_iter", int(max_iterations))
         self.ocp: GaussPseudospectralSolver = build_ocp(
@@ -112,11 +124,14 @@ class Planner:
         model = self.planning.model
         p = self.planning.param_values()
         cold = previous is None or not isinstance(previous.solution, OCPSolution)
+        duals = None
         if cold:
             guess: Any = self._goal_guess(x)
         else:
             guess = self._aligned(previous.solution.shift((step - previous.step) * model.dt), x)
-        sol, record = self._solve(p, x, guess, cold)
+            if self.warm_start_duals and previous.solution.nlp_lam_g is not None:
+                duals = (previous.solution.nlp_lam_x, previous.solution.nlp_lam_g)
+        sol, record = self._solve(p, x, guess, cold, duals)
         usable = sol.success and np.all(np.isfinite(sol.u))
         if not usable and not cold:
             retry, again = self._solve(p, x, self._goal_guess(x), True)
@@ -138,15 +153,18 @@ class Planner:
         record.update(success=bool(sol.success), status=sol.status, fallback=fallback)
         return plan, record
 
-    def _solve(self, p: np.ndarray, x: np.ndarray, guess: Any, cold: bool
+    def _solve(self, p: np.ndarray, x: np.ndarray, guess: Any, cold: bool,
+               duals: tuple[np.ndarray, np.ndarray] | None = None
                ) -> tuple[OCPSolution, dict[str, Any]]:
-        """Solve as often as the term asks; each plan the next reference."""
+        """Solve as often as the term asks; each plan the next reference (and, with
+        ``duals``, the first solve starts from those multipliers)."""
         term, t_nodes = self.planning.term, self.ocp.node_times()
         reference = (guess.state(t_nodes), guess.control(t_nodes))
         iterations, solve_time, error, limit = 0, 0.0, 0.0, term.solves(cold)
         for solves in range(1, limit + 1):
             q = term.node_param_values(*reference)
-            sol = self.ocp.solve(p=p, x0=x, initial_guess=guess, node_params=q)
+            sol = self.ocp.solve(p=p, x0=x, initial_guess=guess, node_params=q,
+                                 multipliers=duals if solves == 1 else None)
             self.n_solves += 1
             self.n_capped += int(sol.status in CAPPED_STATUSES)
             iterations += max(int(sol.iterations), 0)

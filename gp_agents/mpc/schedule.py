@@ -11,7 +11,8 @@ from typing import Any
 from gp_agents.mpc.ocp import Mesh
 from gp_agents.mpc.planner import Plan
 
-__all__ = ["DEFAULT_SETTINGS", "EPISODIC_SETTINGS", "Episodic", "RecedingHorizon"]
+__all__ = ["DEFAULT_SETTINGS", "EPISODIC_SETTINGS", "RTI_QP_SOLVER", "Episodic",
+           "RecedingHorizon"]
 
 DEFAULT_SETTINGS: dict[str, dict[str, Any]] = {
     "cartpole": {"horizon": 1.5, "n_nodes": 16, "n_intervals": 1},
@@ -28,6 +29,10 @@ EPISODIC_SETTINGS: dict[str, dict[str, Any]] = {
 }
 """Episodic settings per system: LG nodes in each held control period. Three nodes collocate
 one period of these systems to within ~1e-9 of the plant's RK4 step (``tests/test_mpc.py``)."""
+
+
+RTI_QP_SOLVER: dict[str, str] = {"cartpole": "osqp", "quadrotor": "osqp", "dubins": "osqp"}
+"""QP solver of the real-time iteration's step per system (``scheme="rti"``)."""
 
 
 class RecedingHorizon:

@@ -40,6 +40,7 @@ line is the transversality condition lambda(t0) = -dPhi/dx0 - (initial-bound mul
 from __future__ import annotations
 
 import copy
+import dataclasses
 import time
 from collections.abc import Mapping, Sequence
 from typing import Any
@@ -50,7 +51,12 @@ from numpy.typing import ArrayLike, NDArray
 
 from gp_agents.pseudospectral.nodes import differentiation_matrix, legendre_gauss, support_points
 from gp_agents.pseudospectral.problem import OptimalControlProblem
-from gp_agents.pseudospectral.solution import InitialGuess, OCPSolution, TrajectoryLike
+from gp_agents.pseudospectral.solution import (
+    InitialGuess,
+    OCPSolution,
+    TrajectoryLike,
+    shift_solution,
+)
 
 __all__ = ["IPOPT_WARM_START_OPTIONS", "GaussPseudospectralSolver", "default_solver_options"]
 
@@ -434,6 +440,7 @@ class GaussPseudospectralSolver:
         self._ubg = np.concatenate([zeros, np.tile(pb.path_ub, M + n_held), pb.boundary_ub])
 
         nlp = {"x": w, "p": P_all, "f": cost, "g": g}
+        self._nlp = nlp
         opts = dict(self.solver_options)
         opts.setdefault("expand", self.expand)
         if fns.node_hessian is not None and "hess_lag" not in opts:
@@ -503,6 +510,7 @@ class GaussPseudospectralSolver:
         initial_guess: OCPSolution | InitialGuess | TrajectoryLike | None = None,
         warm_start_multipliers: bool = True,
         node_params: ArrayLike | None = None,
+        multipliers: tuple[ArrayLike, ArrayLike] | None = None,
     ) -> OCPSolution:
         """Solve the NLP for one parameter value.
 
@@ -523,6 +531,9 @@ class GaussPseudospectralSolver:
                 ``lam_x0`` / ``lam_g0`` (used by IPOPT only with ``warm_start_init_point yes``).
             node_params: (M, n_q) per-node parameters, row k for the collocation node at
                 ``node_times()[k]``; required iff the problem declares ``n_node_params > 0``.
+            multipliers: ``(lam_x (n_w,), lam_g (n_g,))`` to start from with any initial guess
+                (e.g. a previous solution's, with the guess shifted in time); ignored if not
+                finite. IPOPT uses them only with ``warm_start_init_point yes``.
 
         Returns:
             The solution.
@@ -591,6 +602,13 @@ class GaussPseudospectralSolver:
                 if not (np.all(np.isfinite(X)) and np.all(np.isfinite(U))):
                     raise ValueError("initial guess contains NaN or inf")
             w0 = self._pack(X, U, tf_guess)
+        if multipliers is not None:
+            lam_x, lam_g = (np.asarray(v, float).ravel() for v in multipliers)
+            if (lam_x.size, lam_g.size) != (self._nlp_x_size, self._nlp_g_size):
+                raise ValueError(f"multipliers must have sizes ({self._nlp_x_size}, "
+                                 f"{self._nlp_g_size}), got ({lam_x.size}, {lam_g.size})")
+            if np.all(np.isfinite(lam_x)) and np.all(np.isfinite(lam_g)):
+                args["lam_x0"], args["lam_g0"] = lam_x, lam_g
         if x0_arr is not None:
             w0[:n] = x0_arr
         # Start inside the bounds (IPOPT would push the point in anyway; sqpmethod would not).
@@ -609,6 +627,75 @@ class GaussPseudospectralSolver:
         except RuntimeError:  # no stats after an early failure
             stats = {}
         return self._make_solution(res, stats, error, solve_time, p_arr, w0)
+
+    # ------------------------------------------------------------------ the NLP itself
+    @property
+    def nlp(self) -> dict[str, ca.MX]:
+        """The transcribed NLP (MX): decision vector ``x`` (w: states point by point, then the
+        control decisions, then tf if free), parameter ``p`` (``[p; vec(Q)]``, node k's ``q``
+        contiguous), objective ``f`` and constraints ``g`` (module doc order). For schemes
+        that step the NLP themselves (e.g. a real-time iteration's QP)."""
+        return self._nlp
+
+    def bounds(self, x0: ArrayLike | None = None) -> tuple[FloatArray, ...]:
+        """``(lbx, ubx, lbg, ubg)`` of :attr:`nlp`; ``x0`` (n,) fixes X(t0) as ``solve`` does."""
+        lbx, ubx = self._lbx.copy(), self._ubx.copy()
+        if x0 is not None:
+            lbx[: self.n_states] = ubx[: self.n_states] = np.asarray(x0, float).ravel()
+        return lbx, ubx, self._lbg.copy(), self._ubg.copy()
+
+    def control_decision(self, c: int) -> slice:
+        """Where control decision ``c`` (m,) lies in w (a held interval's is its one column)."""
+        start = self.n_states * self.n_points + self.n_controls * int(c)
+        return slice(start, start + self.n_controls)
+
+    def decision_of_node(self, k: int) -> int:
+        """The control decision of collocation node ``k``."""
+        return int(self._layout.control_index[k])
+
+    def shift_operator(self, dt: float) -> FloatArray:
+        """The (n_w, n_w) matrix that maps a solution's w to w of that solution shifted by
+        ``dt`` in time (:func:`gp_agents.pseudospectral.shift_solution`, before its clip to
+        the control bounds): the Lagrange interpolants of the states and controls at the
+        shifted times, the ends held; a held interval's decision is its nodes' mean.
+
+        Raises:
+            ValueError: a free final time (the horizon must be fixed).
+        """
+        if self.problem.free_final_time:
+            raise ValueError("shift_operator needs a fixed final time")
+        N, C, M = self.n_points, self._layout.n_control_decisions, self.n_collocation
+        n, m = self.n_states, self.n_controls
+        basis = self.solution_from_primal(np.zeros(self.n_variables), np.zeros(0), status="basis",
+                                          success=True)
+        expand = np.zeros((M, C))
+        expand[np.arange(M), self._layout.control_index] = 1.0
+        unit = dataclasses.replace(basis, x=np.eye(N), u=expand,
+                                   u_lb=np.full(C, -np.inf), u_ub=np.full(C, np.inf))
+        shifted = shift_solution(unit, dt)
+        mean = expand.T / expand.sum(axis=0)[:, None]  # (C, M): a decision is its nodes' mean
+        A_x, A_u = shifted.x, mean @ shifted.u  # (N, N), (C, C)
+        return np.block([[np.kron(A_x, np.eye(n)), np.zeros((n * N, m * C))],
+                         [np.zeros((m * C, n * N)), np.kron(A_u, np.eye(m))]])
+
+    def solution_from_primal(self, w: ArrayLike, p: ArrayLike, *, status: str, success: bool,
+                             iterations: int = 0, solve_time: float = 0.0,
+                             cost: float = float("nan"), lam_x: ArrayLike | None = None,
+                             lam_g: ArrayLike | None = None) -> OCPSolution:
+        """An :class:`OCPSolution` of a primal vector w (n_w,) computed outside the NLP solver,
+        with multiplier estimates ``lam_x`` (n_w,) and ``lam_g`` if known (else NaN: then the
+        costates are NaN too)."""
+        w_arr = np.asarray(w, float).ravel()
+        if w_arr.size != self.n_variables:
+            raise ValueError(f"w must have {self.n_variables} entries, got {w_arr.size}")
+        res = {"x": w_arr,
+               "lam_x": (np.full(self._nlp_x_size, np.nan) if lam_x is None
+                         else np.asarray(lam_x, float).ravel()),
+               "lam_g": (np.full(self._nlp_g_size, np.nan) if lam_g is None
+                         else np.asarray(lam_g, float).ravel()), "f": cost}
+        stats = {"return_status": status, "success": success, "iter_count": iterations}
+        sol = self._make_solution(res, stats, None, solve_time, np.asarray(p, float).ravel(), w_arr)
+        return dataclasses.replace(sol, success=bool(success), status=status)
 
     # ------------------------------------------------------------------ solution assembly
     def _make_solution(

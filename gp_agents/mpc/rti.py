@@ -1,0 +1,164 @@
+"""Real-time iteration: one Gauss-Newton SQP step of the OCP per control period.
+
+Diehl's real-time iteration (RTI), as acados runs it: instead of solving the OCP to convergence
+at every period, take *one* SQP step from the previous plan shifted in time. Between two periods
+the OCP changes little (a new initial state, one period more of horizon), so one step of a
+method that converges quadratically tracks the optimum; the first plan of an episode is a
+converged solve. The step, from the shifted plan ``w_s`` (its X(t0) the measured state):
+
+    min_dw  1/2 dw' H dw + grad f(w_s)' dw
+    s.t.    lbg - g(w_s) <= J(w_s) dw <= ubg - g(w_s),   lbx <= w_s + dw <= ubx
+
+with ``H`` the Hessian of the objective alone (Gauss-Newton: the stage, terminal and soft-box
+costs are sums of squares, so ``H`` is positive semidefinite and the QP convex). The whole warm
+step (shift, angle alignment, fixing X(t0), the QP, the action) is one compiled CasADi
+function; Python passes the state and the learned term's numbers in, and gets the plan out.
+
+A learned term enters as its per-node linearization at the shifted plan
+(:class:`~gp_agents.mpc.gp_linearized.LinearizedGP`: values and Jacobians as NLP parameters), so
+the QP has the nominal structure and the learner is evaluated once per node per period.
+
+**Safety net.** A step whose QP fails (a non-finite result) or whose plan violates the NLP's
+constraints by more than ``max_violation`` (defects in state units, path constraints in theirs,
+infinity norm) is replaced by a converged solve from the same shifted plan and the previous
+step's multipliers (the QP's, an SQP step's estimate of the NLP's) with IPOPT's warm-start
+options (the :class:`~gp_agents.mpc.planner.Planner`'s solve, with its retry and fallback to
+the previous plan).
+Every such step is counted (``n_rti_rejected``). No wall-clock limit anywhere.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from gp_agents.mpc.learned_term import LearnedTerm
+from gp_agents.mpc.ocp import Constraints, Mesh
+from gp_agents.mpc.planner import Plan, Planner
+from gp_agents.mpc.planning_model import PlanningModel
+from gp_agents.pseudospectral import OCPSolution
+
+__all__ = ["QP_SOLVER_OPTIONS", "RTIPlanner"]
+
+QP_SOLVER_OPTIONS: dict[str, dict[str, Any]] = {
+    "osqp": {"osqp": {"verbose": False, "eps_abs": 1e-6, "eps_rel": 1e-6,
+                      "max_iter": 10000, "polish": True}, "warm_start_primal": True},
+    "qrqp": {"print_iter": False, "print_header": False, "print_info": False},
+    "hpipm": {"hpipm": {"iter_max": 100, "tol_stat": 1e-8, "tol_eq": 1e-8, "tol_ineq": 1e-8,
+                        "tol_comp": 1e-8}},
+}
+"""QP options per solver: tolerances tight enough that the step is the QP's solution (the
+iteration caps are counts, so the step is deterministic)."""
+
+
+class RTIPlanner(Planner):
+    """A :class:`Planner` that takes one SQP step per period from the shifted previous plan.
+
+    Args:
+        planning, mesh, constraints: as for :class:`Planner`.
+        qp_solver: CasADi conic plugin for the step's QP (``"osqp"``, ``"qrqp"``, ``"hpipm"``,
+            ...; chosen per system by measurement, :data:`gp_agents.mpc.schedule.RTI_QP_SOLVER`).
+        qp_options: CasADi options of that plugin (default :data:`QP_SOLVER_OPTIONS`).
+        max_violation: largest constraint violation of an accepted step (see module doc).
+        **settings: the converged solver's settings (:class:`Planner`).
+    """
+
+    def __init__(self, planning: PlanningModel, mesh: Mesh, constraints: Constraints, *,
+                 qp_solver: str = "osqp", qp_options: Mapping[str, Any] | None = None,
+                 max_violation: float = 1e-2, **settings: Any) -> None:
+        settings.setdefault("warm_start_duals", True)
+        super().__init__(planning, mesh, constraints, **settings)
+        if not ca.has_conic(qp_solver):
+            raise ValueError(f"CasADi QP solver plugin {qp_solver!r} is not available")
+        if not (np.isfinite(max_violation) and max_violation > 0):
+            raise ValueError(f"max_violation must be > 0, got {max_violation}")
+        self.qp_solver, self.max_violation = qp_solver, float(max_violation)
+        options = dict(QP_SOLVER_OPTIONS.get(qp_solver, {}) if qp_options is None else qp_options)
+        options.setdefault("error_on_fail", False)
+        self._shift, self._qp_step, self._step = self._build(options)
+        self.n_rti_steps = self.n_rti_rejected = 0
+
+    def _build(self, qp_options: dict[str, Any]) -> tuple[ca.Function, ca.Function, ca.Function]:
+        ocp, model = self.ocp, self.planning.model
+        nlp = ocp.nlp
+        w, P, f, g = nlp["x"], nlp["p"], nlp["f"], nlp["g"]
+        n, N, n_w = model.n_states, ocp.n_points, ocp.n_variables
+        lbx, ubx, lbg, ubg = (ca.DM(b) for b in ocp.bounds())
+        H = ca.hessian(f, w)[0]
+        J = ca.jacobian(g, w)
+        derivatives = ca.Function("rti_derivatives", [w, P],
+                                  [g, J, ca.gradient(f, w), H]).expand()
+        constraints = ca.Function("rti_g", [w, P], [g]).expand()
+        qp = ca.conic("rti_qp", self.qp_solver, {"h": H.sparsity(), "a": J.sparsity()},
+                      qp_options)
+
+        # the shift: interpolants at the shifted times, angles moved by 2 pi k to start at the
+        # measured ones, clipped into the bounds, X(t0) the measured state
+        w_prev, x0 = ca.MX.sym("w_prev", n_w), ca.MX.sym("x0", n)
+        dt = self.mesh.held_periods * model.dt
+        ws = ca.mtimes(ca.DM(ca.sparsify(ca.DM(ocp.shift_operator(dt)))), w_prev)
+        for i in model.angle_indices:
+            turns = ca.floor((x0[i] - ws[i]) / (2 * np.pi) + 0.5)
+            mask = np.zeros(n_w)
+            mask[[j * n + i for j in range(N)]] = 1.0
+            ws = ws + 2 * np.pi * turns * ca.DM(mask)
+        ws = ca.vertcat(x0, ca.fmin(ca.fmax(ws[n:], lbx[n:]), ubx[n:]))
+        shift = ca.Function("rti_shift", [w_prev, x0], [ws], ["w_prev", "x0"], ["w"])
+
+        # the Gauss-Newton QP step and what it gives
+        w_s, p = ca.MX.sym("w_s", n_w), ca.MX.sym("p", P.numel())
+        g0, J0, grad0, H0 = derivatives(w_s, p)
+        lo, hi = ca.vertcat(w_s[:n], lbx[n:]), ca.vertcat(w_s[:n], ubx[n:])
+        res = qp(h=H0, g=grad0, a=J0, lba=lbg - g0, uba=ubg - g0, lbx=lo - w_s, ubx=hi - w_s,
+                 x0=ca.DM.zeros(n_w))
+        w_new = w_s + res["x"]
+        g_new = constraints(w_new, p)
+        violation = ca.mmax(ca.vertcat(ca.fmax(lbg - g_new, 0), ca.fmax(g_new - ubg, 0)))
+        action = w_new[ocp.control_decision(ocp.decision_of_node(0))]
+        outputs = [w_new, action, violation, res["lam_a"], res["lam_x"]]
+        names = ["w", "u", "violation", "lam_g", "lam_x"]
+        qp_step = ca.Function("rti_qp_step", [w_s, p], outputs, ["w_s", "p"], names)
+        step = ca.Function("rti_step", [w_prev, x0, p], qp_step(ws, p),
+                           ["w_prev", "x0", "p"], names)
+        return shift, qp_step, step
+
+    def plan(self, x: np.ndarray, previous: Plan | None, step: int) -> tuple[Plan, dict[str, Any]]:
+        """One SQP step from ``previous`` shifted to period ``step``, or a converged solve
+        (cold start, a previous plan that is not this OCP's, or a rejected step)."""
+        periods = self.mesh.held_periods
+        warm = (previous is not None and isinstance(previous.solution, OCPSolution)
+                and previous.solution.structure == self.ocp._structure
+                and step - previous.step == periods)
+        if not warm:
+            return super().plan(x, previous, step)
+        start = time.perf_counter()
+        term: LearnedTerm = self.planning.term
+        p = self.planning.param_values()
+        w_prev = previous.solution.nlp_x
+        if term.n_node_params():
+            ws = np.asarray(self._shift(w_prev, x)).ravel()
+            sol = self.ocp.solution_from_primal(ws, p, status="shifted", success=True)
+            q = term.node_param_values(sol.x_nodes, sol.u)
+            out = self._qp_step(ws, np.concatenate([p, q.ravel()]))
+        else:
+            out = self._step(w_prev, x, p)
+        w_new, _, violation, lam_g, lam_x = (np.asarray(v).ravel() for v in out)
+        violation = float(violation[0])
+        elapsed = time.perf_counter() - start
+        self.n_rti_steps += 1
+        if not (np.all(np.isfinite(w_new)) and violation <= self.max_violation):
+            self.n_rti_rejected += 1
+            plan, record = super().plan(x, previous, step)
+            record["solve_time"] += elapsed
+            record["status"] = f"RTI rejected ({violation:.2g}), {record['status']}"
+            return plan, record
+        sol = self.ocp.solution_from_primal(w_new, p, status="RTI", success=True, iterations=1,
+                                            solve_time=elapsed, lam_x=lam_x, lam_g=lam_g)
+        error = term.plan_error(sol) if term.n_node_params() else 0.0
+        return Plan(sol, step, self.planning.model.dt, self.ocp.hold), dict(
+            success=True, status="RTI", iterations=1, solve_time=elapsed, solves=1,
+            fallback=False, linearization_error=float(error))
