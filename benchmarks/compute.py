@@ -24,6 +24,7 @@ import numpy as np
 
 from benchmarks.controllers import build_controller, make_env
 from benchmarks.trial import TrialSpec
+from gp_agents.agent import rollout
 
 N_TIMED_UPDATES = 200
 """Single-sample updates timed per ``ssgp-update-time`` trial."""
@@ -50,23 +51,9 @@ def run_act_scaling(spec: TrialSpec) -> dict[str, Any]:
         t0 = time.perf_counter()
         agent.learner.update(Z, Y)
         update_s = time.perf_counter() - t0
-    obs, _ = env.reset(seed=spec.seed)
-    agent.reset()
-    act_times, rewards, samples = [], [], []
-    info: dict[str, Any] = {"success": False}
-    while True:
-        t0 = time.perf_counter()
-        action = agent.act(obs)
-        act_times.append(time.perf_counter() - t0)
-        samples.append(int(agent.learner.n_samples_seen_))
-        next_obs, reward, terminated, truncated, info = env.step(action)
-        agent.observe(obs, action, next_obs)
-        rewards.append(float(reward))
-        obs = next_obs
-        if terminated or truncated:
-            break
-        if spec.max_steps is not None and len(act_times) >= spec.max_steps:
-            break
+    episode = rollout(env, agent, spec.seed, max_steps=spec.max_steps)
+    act_times, info = episode.act_times, episode.final_info
+    samples = agent.diagnostics_arrays()["learner_samples"]
     act = np.array(act_times)
     metrics = {
         "samples_before_episode": n_samples,
@@ -76,12 +63,12 @@ def run_act_scaling(spec: TrialSpec) -> dict[str, Any]:
         "act_max_ms": 1e3 * float(act.max()),
         "steps": len(act_times),
         "success": bool(info["success"]),
-        "cost": -float(np.sum(rewards)),
+        "cost": episode.cost,
         "solver_failures": int(agent.n_failures),
     }
     env.close()
     return {"metrics": metrics, "arrays": {"act_time": act, "learner_samples": np.array(samples),
-                                           "reward": np.array(rewards)}}
+                                           "reward": episode.rewards}}
 
 
 def run_update_time(spec: TrialSpec) -> dict[str, Any]:

@@ -146,13 +146,16 @@ def run_peers(spec: TrialSpec) -> dict[str, Any]:
     model = env.unwrapped.nominal_model
     horizon = float(DEFAULT_SETTINGS[model.name]["horizon"])
     ps = PseudospectralMPC.from_env(env, horizon=horizon)
+    env_rti = make_env(spec.env, spec.scenario)
+    rti_agent = PseudospectralMPC.from_env(env_rti, horizon=horizon, scheme="rti")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         peer = DoMPCController(model, horizon)
 
-        # one step of each in turn: a change of the machine's load slows both alike
-        ours, theirs = (_summary(e) for e in rollout_lockstep(
-            [(env, ps), (make_env(spec.env, spec.scenario), peer)], spec.seed))
+        # one step of each in turn: a change of the machine's load slows all alike
+        ours, rti, theirs = (_summary(e) for e in rollout_lockstep(
+            [(env, ps), (env_rti, rti_agent), (make_env(spec.env, spec.scenario), peer)],
+            spec.seed))
     ps_solve = np.array([r.solve_time for r in ps.diagnostics if r.replanned])
     med_ours, med_theirs = float(np.median(ours["act"])), float(np.median(theirs["act"]))
     n_ps_vars = int(ps.planner.ocp.n_variables) if ps.planner is not None else -1
@@ -169,6 +172,11 @@ def run_peers(spec: TrialSpec) -> dict[str, Any]:
         "ps_solve_median_ms": 1e3 * float(np.median(ps_solve)),
         "dompc_solve_median_ms": 1e3 * float(np.nanmedian(peer.solve_times)),
         "time_ratio": med_ours / med_theirs,
+        "rti_act_median_ms": 1e3 * float(np.median(rti["act"])),
+        "rti_time_ratio": float(np.median(rti["act"])) / med_theirs,
+        "rti_cost": rti["cost"],
+        "rti_success": rti["success"],
+        "rti_rejected": int(rti_agent.planner.n_rti_rejected),
         "ps_cost": ours["cost"],
         "dompc_cost": theirs["cost"],
         "ps_success": ours["success"],
@@ -182,4 +190,5 @@ def run_peers(spec: TrialSpec) -> dict[str, Any]:
     env.close()
     return {"metrics": metrics, "arrays": {"ps_act_time": ours["act"],
                                            "dompc_act_time": theirs["act"],
+                                           "rti_act_time": rti["act"], "rti_obs": rti["obs"],
                                            "ps_obs": ours["obs"], "dompc_obs": theirs["obs"]}}

@@ -224,6 +224,35 @@ def linearized(seeds: Sequence[int] = tuple(range(10)),
         specs, ("acceptance", "summary", "step_times", "scaling"))
 
 
+RTI_CONTROLLERS = ("nominal-mpc", "nominal-mpc-rti", "ssgp-mpc", "ssgp-mpc-rti")
+"""The converged and real-time-iteration recipes the ``rti`` preset compares."""
+
+
+def rti(seeds: Sequence[int] = tuple(range(10)),
+        dubins_seeds: Sequence[int] = tuple(range(50)),
+        act_samples: Sequence[int] = (200, 5000)) -> Experiment:
+    """The MPC acceptance runs with the real-time iteration next to the converged MPC."""
+    specs = episodes((*RTI_CONTROLLERS, "oracle-mpc", "oracle-mpc-rti"),
+                     [("cartpole", "online")], seeds)
+    specs += episodes(RTI_CONTROLLERS, [("quadrotor", "gp"), ("quadrotor", "online")], seeds)
+    specs += episodes(RTI_CONTROLLERS, [("dubins", "paper")], dubins_seeds)
+    specs += tuple(TrialSpec("ssgp-act-scaling", env, scenario, "ssgp-mpc-rti", 0, param=n)
+                   for env, scenario in (("cartpole", "online"), ("quadrotor", "gp"),
+                                         ("dubins", "paper"))
+                   for n in act_samples)
+    return Experiment(
+        "rti", "Real-time iteration against the converged MPC",
+        "The MPC acceptance runs (cart pole `online` and quadrotor `gp`/`online` on 10 seeds, "
+        "Dubins on 50) for the nominal, oracle (cart pole) and SSGP-MPC, each converged "
+        "(`scheme='converged'`) and as a real-time iteration (`scheme='rti'`: a converged "
+        "cold start, then one Gauss-Newton SQP step per period; the SSGP one with the GP "
+        "linearized per node at the shifted plan), all in one run so that the step-time "
+        "ratios compare like with like; and the SSGP RTI's step time after learning 200 vs "
+        "5,000 samples. Targets: nominal RTI step at most 0.15x the converged one; SSGP RTI "
+        "at most 1.5x the nominal RTI; the same successes as the converged MPC.",
+        specs, ("acceptance", "summary", "step_times", "scaling"))
+
+
 def quick() -> Experiment:
     """A couple of minutes: the main controllers on every env, one or two seeds."""
     ssgp = ("ssgp-mpc", "ssgp-mpc-linearized")
@@ -264,6 +293,8 @@ PRESETS: dict[str, Preset] = {
                             (speed_options(),)),
     "linearized": Preset("linearized", "acceptance runs of the linearized SSGP-MPC "
                          "(not part of full)", (linearized(),)),
+    "rti": Preset("rti", "real-time iteration vs converged MPC, with the peers comparison "
+                  "(not part of full)", (rti(), peers())),
     "full": Preset("full", "everything: all experiments above except quick",
                    (paper_tables(), dubins(), sample_efficiency(), compute(), peers(),
                     mpc_acceptance())),
