@@ -4,7 +4,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 export OMP_NUM_THREADS ?= 1
 
-.PHONY: bench bench-full bench-linearized test throughput clean
+.PHONY: bench bench-full bench-linearized bench-rti test throughput clean
 
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -25,6 +25,10 @@ bench-full: $(VENV)/.installed  # every experiment (350 trials, ~15 min on 2 cor
 bench-linearized: $(VENV)/.installed  # the linearized SSGP-MPC's acceptance runs (~9 min on 2 cores)
 	$(PY) -m benchmarks --preset linearized --workers 2
 	$(PY) -m benchmarks.update_readme linearized
+
+bench-rti: $(VENV)/.installed  # real-time iteration vs converged MPC, and the peers comparison
+	$(PY) -m benchmarks --preset rti --workers 2
+	$(PY) -m benchmarks.update_readme rti
 
 test: $(VENV)/.installed
 	$(PY) -m ruff check .

@@ -19,7 +19,8 @@ from pathlib import Path
 
 COLUMNS = (
     ("env", "env"), ("scenario", "scenario"), ("label", "controller"),
-    ("episodes", "episodes"), ("success_rate", "success rate"), ("cost_mean", "mean cost"),
+    ("episodes", "episodes"), ("success_rate", "success rate [95% CI]"),
+    ("cost_mean", "mean cost [95% CI]"),
     ("final_distance_mean", "final distance"), ("episodes_with_violation", "episodes w/ violation"),
     ("data_steps_mean", "env steps of data"), ("act_median_ms", "act median (ms)"),
 )
@@ -27,14 +28,29 @@ DIGITS = {"success_rate": 2, "cost_mean": 1, "final_distance_mean": 3, "data_ste
           "act_median_ms": 1}
 
 
-def _cell(key: str, value: str) -> str:
+INTERVALS = {"success_rate": ("success_ci_low", "success_ci_high"),
+             "cost_mean": ("cost_ci_low", "cost_ci_high")}
+"""Columns shown with their 95% interval (Wilson for rates, bootstrap of the mean for costs)."""
+
+
+def _cell(key: str, value: str, row: dict[str, str] | None = None) -> str:
     if key not in DIGITS:
         return value
     try:
         x = float(value)
     except ValueError:
         return value or "-"
-    return "-" if not math.isfinite(x) else f"{x:.{DIGITS[key]}f}"
+    if not math.isfinite(x):
+        return "-"
+    text = f"{x:.{DIGITS[key]}f}"
+    if row is not None and key in INTERVALS and all(k in row for k in INTERVALS[key]):
+        try:
+            low, high = (float(row[k]) for k in INTERVALS[key])
+        except ValueError:
+            return text
+        if math.isfinite(low) and math.isfinite(high):
+            text += f" [{low:.{DIGITS[key]}f}, {high:.{DIGITS[key]}f}]"
+    return text
 
 
 def readme_table(report_dir: Path, experiment: str | None = None) -> str:
@@ -65,7 +81,7 @@ def readme_table(report_dir: Path, experiment: str | None = None) -> str:
     for r in rows:
         if r["experiment"] != experiment:
             continue
-        cells = [_cell(k, r[k]) for k, _ in COLUMNS]
+        cells = [_cell(k, r[k], r) for k, _ in COLUMNS]
         if r["status"] == "not available":
             cells = [*cells[:3], "not available", *["-"] * (len(COLUMNS) - 4)]
         lines.append("| " + " | ".join(cells) + " |")

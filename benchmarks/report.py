@@ -51,7 +51,8 @@ TIME_COLUMNS = ("act_median_ms", "act_p95_ms", "act_max_ms", "build_s", "episode
 may change (the controllers are capped by iterations, never by time)."""
 SUMMARY_COLUMNS = (
     "experiment", "env", "scenario", "controller", "label", "status", "episodes", "success_rate",
-    "cost_mean", "cost_std", "cost_median", "time_to_success_mean_s", "final_distance_mean",
+    "success_ci_low", "success_ci_high", "cost_mean", "cost_ci_low", "cost_ci_high", "cost_std",
+    "cost_median", "time_to_success_mean_s", "final_distance_mean",
     "final_position_error_mean", "final_position_error_max", "violations_total",
     "episodes_with_violation", "data_steps_mean", "act_median_ms", "act_p95_ms", "act_max_ms",
     "solver_failures", "fallbacks", "success_held_rate", "plan_plant_defect_max",
@@ -151,6 +152,50 @@ def _mean(values: Sequence[float]) -> float:
     return float(arr.mean()) if arr.size else float("nan")
 
 
+def mean_ci(values: Sequence[float], confidence: float = 0.95) -> tuple[float, float]:
+    """Bootstrap interval of the mean over seeds (scipy's BCa, 9,999 resamples, fixed random
+    state so the report is a function of the trials); (nan, nan) below 2 finite values, the
+    value twice if they are all equal."""
+    from scipy.stats import bootstrap
+
+    arr = np.asarray([v for v in values if v is not None], float)
+    arr = arr[np.isfinite(arr)]
+    if arr.size < 2:
+        return math.nan, math.nan
+    if np.ptp(arr) == 0:
+        return float(arr[0]), float(arr[0])
+    res = bootstrap((arr,), np.mean, confidence_level=confidence, n_resamples=9999,
+                    method="BCa", random_state=0)
+    low, high = float(res.confidence_interval.low), float(res.confidence_interval.high)
+    if not (math.isfinite(low) and math.isfinite(high)):  # BCa degenerate: percentile
+        low, high = (float(v) for v in np.percentile(
+            bootstrap((arr,), np.mean, n_resamples=9999, method="percentile",
+                      random_state=0).bootstrap_distribution, [2.5, 97.5]))
+    return low, high
+
+
+def wilson_ci(successes: int, n: int, confidence: float = 0.95) -> tuple[float, float]:
+    """Wilson score interval of a success rate (nan, nan for n = 0)."""
+    from scipy.stats import norm
+
+    if n == 0:
+        return math.nan, math.nan
+    z = float(norm.ppf(0.5 + confidence / 2))
+    p = successes / n
+    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    low = 0.0 if successes == 0 else max(0.0, centre - half)
+    high = 1.0 if successes == n else min(1.0, centre + half)
+    return low, high
+
+
+def _interval(low: float, high: float, digits: int = 2) -> str:
+    """``[low, high]``, or empty when undefined."""
+    if not (isinstance(low, float | int) and math.isfinite(low) and math.isfinite(high)):
+        return ""
+    return f"[{_fmt(float(low), digits)}, {_fmt(float(high), digits)}]"
+
+
 def _write_csv(path: Path, columns: Sequence[str], rows: Iterable[dict[str, Any]]) -> None:
     with open(path, "w", newline="") as fh:
         writer = csv.DictWriter(fh, fieldnames=list(columns), extrasaction="ignore")
@@ -220,11 +265,16 @@ def summarize(experiment: str, trials: Sequence[Trial]) -> list[dict[str, Any]]:
         outside = (np.concatenate([t.arrays["diag_act_time"][k] - t.arrays["diag_solve_time"][k]
                                    for t, k in zip(ok, replans, strict=False)])
                    if solve.size else np.zeros(0))
+        n_success = int(sum(bool(x["success"]) for x in m))
+        success_ci = wilson_ci(n_success, len(m))
+        cost_ci = mean_ci(costs)
         rows.append({
             "experiment": experiment, "env": env, "scenario": scenario,
             "controller": controller, "label": _label(controller), "status": status,
             "episodes": len(ok),
             "success_rate": _mean([float(x["success"]) for x in m]),
+            "success_ci_low": success_ci[0], "success_ci_high": success_ci[1],
+            "cost_ci_low": cost_ci[0], "cost_ci_high": cost_ci[1],
             "success_held_rate": _mean([float(x.get("success_held", x["success"])) for x in m]),
             "plan_plant_defect_max": max([x.get("plan_plant_defect", math.nan) for x in m],
                                          default=math.nan),
@@ -273,22 +323,26 @@ SectionFn = Callable[[Context, Experiment], list[str]]
 def section_summary(ctx: Context, exp: Experiment) -> list[str]:
     """Per-controller table of the experiment's episodes."""
     rows = ctx.summaries[exp.name]
-    header = ["env", "controller", "episodes", "success", "cost mean (std)",
+    header = ["env", "controller", "episodes", "success [95% CI]", "cost mean [95% CI]",
               "time to success (s)", "final dist.", "final pos. err. (m)", "violations",
               "data steps", "act median / p95 / max (ms)", "solver fails / fallbacks", "status"]
     body = []
     for r in rows:
         body.append([
-            f"{r['env']} `{r['scenario']}`", r["label"], r["episodes"], r["success_rate"],
-            f"{_fmt(r['cost_mean'])} ({_fmt(r['cost_std'])})", r["time_to_success_mean_s"],
+            f"{r['env']} `{r['scenario']}`", r["label"], r["episodes"],
+            f"{_fmt(r['success_rate'])} {_interval(r['success_ci_low'], r['success_ci_high'])}",
+            f"{_fmt(r['cost_mean'])} {_interval(r['cost_ci_low'], r['cost_ci_high'])}",
+            r["time_to_success_mean_s"],
             r["final_distance_mean"], r["final_position_error_mean"],
             f"{r['violations_total']} in {r['episodes_with_violation']} ep.",
             _fmt(r["data_steps_mean"], 0),
             f"{_fmt(r['act_median_ms'], 1)} / {_fmt(r['act_p95_ms'], 1)} / "
             f"{_fmt(r['act_max_ms'], 0)}",
             f"{_fmt(r['solver_failures'])} / {_fmt(r['fallbacks'])}", r["status"]])
-    lines = ["", "Per controller (means over episodes; *success*: `info['success']` at the "
-             "episode end; *final dist.*: `info['distance_to_goal']`; *violations*: steps with "
+    lines = ["", "Per controller (means over episodes, with 95% intervals over seeds: Wilson for "
+             "the success rate, bootstrap (BCa) of the mean for the cost; *success*: "
+             "`info['success']` at the episode end (episodic plans: at the goal at the plan's "
+             "final time); *final dist.*: `info['distance_to_goal']`; *violations*: steps with "
              "`info['constraint_violation']`; *data steps*: env steps of data used):", ""]
     lines += markdown_table(header, body, ["---", "---"] + ["---:"] * 10 + ["---"])
     unavailable = [t for t in ctx.of(exp) if t.status == STATUS_UNAVAILABLE]
