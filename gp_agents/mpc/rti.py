@@ -47,6 +47,7 @@ __all__ = ["QP_SOLVER_OPTIONS", "RTIPlanner"]
 QP_SOLVER_OPTIONS: dict[str, dict[str, Any]] = {
     "osqp": {"osqp": {"verbose": False, "eps_abs": 1e-6, "eps_rel": 1e-6,
                       "max_iter": 10000, "polish": True}, "warm_start_primal": True},
+    "proxqp": {"proxqp": {"eps_abs": 1e-6, "max_iter": 10000, "verbose": False}},
     "qrqp": {"print_iter": False, "print_header": False, "print_info": False},
     "hpipm": {"hpipm": {"iter_max": 100, "tol_stat": 1e-8, "tol_eq": 1e-8, "tol_ineq": 1e-8,
                         "tol_comp": 1e-8}},
@@ -68,7 +69,7 @@ class RTIPlanner(Planner):
     """
 
     def __init__(self, planning: PlanningModel, mesh: Mesh, constraints: Constraints, *,
-                 qp_solver: str = "osqp", qp_options: Mapping[str, Any] | None = None,
+                 qp_solver: str = "proxqp", qp_options: Mapping[str, Any] | None = None,
                  max_violation: float = 1e-2, **settings: Any) -> None:
         settings.setdefault("warm_start_duals", True)
         super().__init__(planning, mesh, constraints, **settings)
