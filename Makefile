@@ -4,7 +4,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 export OMP_NUM_THREADS ?= 1
 
-.PHONY: bench bench-full bench-linearized bench-rti test throughput clean
+.PHONY: bench bench-full bench-acceptance bench-linearized bench-rti test throughput clean
 
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -18,9 +18,13 @@ bench: $(VENV)/.installed
 	$(PY) -m benchmarks --preset quick
 	$(PY) -m benchmarks.update_readme quick
 
-bench-full: $(VENV)/.installed  # every experiment (350 trials, ~15 min on 2 cores)
+bench-full: $(VENV)/.installed  # every experiment (paper tables, Dubins, sample efficiency, compute, peers, acceptance)
 	$(PY) -m benchmarks --preset full --workers 2
-	$(PY) -m benchmarks.update_readme full full/dubins full/mpc-acceptance
+
+bench-acceptance: $(VENV)/.installed  # the paper's tables and the MPC acceptance runs, README tables
+	$(PY) -m benchmarks --preset paper-tables --workers 2
+	$(PY) -m benchmarks --preset mpc-acceptance --workers 2
+	$(PY) -m benchmarks.update_readme paper-tables mpc-acceptance
 
 bench-linearized: $(VENV)/.installed  # the linearized SSGP-MPC's acceptance runs (~9 min on 2 cores)
 	$(PY) -m benchmarks --preset linearized --workers 2
