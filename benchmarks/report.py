@@ -868,10 +868,11 @@ def _record_counts(trials: Iterable[Any], key: str) -> str:
 
 
 def _capped(trials: Iterable[Any]) -> str:
-    capped = [int(t.metrics.get("capped_solves", 0) or 0) for t in trials
-              if t.ok and t.spec.kind == "episode"]
-    return (f"{sum(capped)} in {sum(c > 0 for c in capped)} of {len(capped)} episode(s)"
-            if capped else "no episodes")
+    capped = [int(c) for t in trials if t.ok and t.spec.kind == "episode"
+              for c in [t.metrics.get("capped_solves", math.nan)]
+              if isinstance(c, int | float) and math.isfinite(c)]
+    return (f"{sum(capped)} in {sum(c > 0 for c in capped)} of {len(capped)} MPC episode(s)"
+            if capped else "no MPC episodes")
 
 
 def write_report(out_dir: Path, preset: Preset, command: str,
