@@ -240,6 +240,17 @@ def make_env(env: str, scenario: str) -> gym.Env:
     return gym.make(ENVS[env].env_id, scenario=scenario)
 
 
+class OracleModel:
+    """The oracle recipes' model source: the env's true model (``gp_envs.oracle_model``), the
+    benchmark's to hand in (a class, so that the agent pickles)."""
+
+    def __init__(self, env: gym.Env) -> None:
+        self.env = env
+
+    def __call__(self) -> Any:
+        return gp_envs.oracle_model(self.env)
+
+
 def make_learner(kind: str) -> Any:
     """A fresh residual learner of the recipe kind ``"exact"`` or ``"ssgp"``."""
     from gp_agents import online_ssgp
@@ -282,7 +293,7 @@ def build_controller(name: str, env: gym.Env, env_name: str, seed: int,
         data = collect_initial_data(env, n_init, seed=seed)
     obs, _ = env.reset(seed=seed)
     learner = make_learner(recipe.learner) if recipe.learner is not None else None
-    source = (lambda: gp_envs.oracle_model(env)) if recipe.oracle else None
+    source = OracleModel(env) if recipe.oracle else None
     agent = PseudospectralMPC.from_env(env, learner, model_source=source, mode=recipe.mode,
                                        learn_online=recipe.learn_online, **dict(recipe.settings))
     if data is not None:

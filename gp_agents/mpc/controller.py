@@ -49,6 +49,17 @@ LEARNED_TERMS: dict[str, type[LearnedTerm]] = {"exact": GPInNLP, "linearized": L
 """``learned_dynamics`` names: the GP inside the NLP (the paper's OCP), or linearized per node."""
 
 
+class EnvNominalModel:
+    """The model source of :meth:`PseudospectralMPC.from_env`: the env's current nominal model
+    (a class, not a closure, so that an agent pickles with its env)."""
+
+    def __init__(self, env: gym.Env) -> None:
+        self.env = env
+
+    def __call__(self) -> ControlModel:
+        return self.env.unwrapped.nominal_model
+
+
 class PseudospectralMPC:
     """Gauss pseudospectral MPC on nominal physics plus an optional learned residual.
 
@@ -142,6 +153,14 @@ class PseudospectralMPC:
         self.n_builds = 0
         self.reset()
 
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickle everything but the compiled NLP, which is rebuilt at the next ``act`` (the
+        learner, the current plan and the diagnostics travel; so does the env of a
+        ``from_env`` agent, whose nominal model it follows)."""
+        state = self.__dict__.copy()
+        state["planner"] = None
+        return state
+
     @property
     def horizon(self) -> float:
         """Planning horizon in seconds."""
@@ -173,7 +192,7 @@ class PseudospectralMPC:
         base = env.unwrapped
         if not hasattr(base, "nominal_model"):
             raise TypeError("from_env needs a gp_envs environment (with a nominal_model)")
-        source = model_source or (lambda: base.nominal_model)
+        source = model_source or EnvNominalModel(env)
         agent = cls(source(), learner, **settings)
         agent._model_source = source
         return agent

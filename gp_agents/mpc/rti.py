@@ -132,7 +132,7 @@ class RTIPlanner(Planner):
         (cold start, a previous plan that is not this OCP's, or a rejected step)."""
         periods = self.mesh.held_periods
         warm = (previous is not None and isinstance(previous.solution, OCPSolution)
-                and previous.solution.structure == self.ocp._structure
+                and self.ocp.same_transcription(previous.solution)
                 and step - previous.step == periods)
         if not warm:
             return super().plan(x, previous, step)

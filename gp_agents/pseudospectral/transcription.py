@@ -649,6 +649,12 @@ class GaussPseudospectralSolver:
         start = self.n_states * self.n_points + self.n_controls * int(c)
         return slice(start, start + self.n_controls)
 
+    def same_transcription(self, solution: OCPSolution) -> bool:
+        """Whether ``solution`` came from this transcription or one with the same mesh and
+        sizes (e.g. this solver rebuilt after unpickling), so its raw vectors fit this NLP."""
+        return (solution.structure is not None and solution.structure[1:] == self._structure[1:]
+                and solution.nlp_x is not None and solution.nlp_x.size == self.n_variables)
+
     def decision_of_node(self, k: int) -> int:
         """The control decision of collocation node ``k``."""
         return int(self._layout.control_index[k])
