@@ -406,3 +406,43 @@ def test_killed_cli_run_resumes_to_the_total(tmp_path: Path) -> None:
     rows = _curve(out)
     assert [int(r["timesteps"]) for r in rows] == [0, 100, 200]
     RLAgent.load(out, gym.make("gp_envs/CartPoleSwingUp-v0", scenario="online"))
+
+
+# --------------------------------------------------------------------------- multi-seed summary
+def test_median_iqr_ci() -> None:
+    from benchmarks.rl_summary import median_iqr_ci
+
+    st = median_iqr_ci([5.0, 1.0, 3.0, 2.0, 4.0])
+    assert (st["median"], st["q25"], st["q75"], st["n"]) == (3.0, 2.0, 4.0, 5)
+    assert 1.0 <= st["ci_lo"] <= st["median"] <= st["ci_hi"] <= 5.0
+    assert st == median_iqr_ci([1.0, 2.0, 3.0, 4.0, 5.0])  # fixed bootstrap generator
+    one = median_iqr_ci([0.5])
+    assert one["median"] == 0.5 and np.isnan(one["ci_lo"]) and np.isnan(one["ci_hi"])
+
+
+def test_summary_from_tiny_runs(sac_runs: dict, tmp_path: Path,
+                                monkeypatch: pytest.MonkeyPatch) -> None:
+    import shutil
+
+    import benchmarks.rl_summary as summary
+    from benchmarks.rl_runs import Plan
+
+    root = tmp_path / "runs"
+    for seed in (0, 1):
+        shutil.copytree(sac_runs["root"] / "whole", root / f"seed{seed}",
+                        ignore=shutil.ignore_patterns("checkpoints"))
+    plan = Plan(env="cartpole", scenario="online", algo="sac", hyperparams="sac-swingup",
+                steps=480, seeds=(0, 1, 2), reward="bounded-shift", time_feature=True,
+                eval_freq=160, eval_episodes=1, checkpoint_freq=160, root=root,
+                description="tiny")
+    monkeypatch.setitem(summary.PLANS, "tiny", plan)
+    path = summary.write_summary(["tiny"], out=tmp_path / "out")
+    text = path.read_text()
+    assert "**2 finished**" in text and "1 not started" in text
+    assert "| success rate |" in text and "BoundedShiftReward" in text
+    with open(tmp_path / "out" / "tiny_final_eval.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == 40 and sorted({int(r["episode_seed"]) for r in rows}) == list(range(20))
+    # the two copies are the same policy: the same episodes
+    assert [r["cost"] for r in rows[:20]] == [r["cost"] for r in rows[20:]]
+    assert (tmp_path / "out" / "tiny_curves.png").stat().st_size > 10_000
