@@ -42,6 +42,7 @@ from matplotlib.ticker import FormatStrFormatter, FuncFormatter
 
 import gp_envs  # noqa: F401  (registers the envs)
 from benchmarks.rl_runs import PLANS, REPO, Plan
+from benchmarks.train_rl import ENV_SHORT_NAMES
 from gp_agents.rl import METADATA_FILE, RLAgent, rollout
 
 OUT = Path(__file__).resolve().parent / "results" / "rl"
@@ -187,9 +188,8 @@ def plot_plan(name: str, plan: Plan, runs: list[SeedRun], path: Path) -> None:
     axes[0].plot([], [], "*", ms=11, color="0.6", markeredgecolor="k",
                  label="final policy, seeds 0..19")
     axes[0].legend(fontsize=7, loc="upper left")
-    meta = next((r.metadata for r in runs if r.metadata), None)
-    env_id = meta["env_id"] if meta else plan.env
-    fig.suptitle(f"{env_id} ({plan.scenario}), {plan.algo.upper()}: {plan.description}\n"
+    env_id = ENV_SHORT_NAMES.get(plan.env, plan.env)
+    fig.suptitle(f"{env_id} ({plan.scenario}): {plan.description}\n"
                  "lines: deterministic evaluation during training on reset seeds 1000..1019 "
                  "(success, cost = -return on the plain env, final distance)", fontsize=9)
     fig.tight_layout()
@@ -209,7 +209,7 @@ def plan_section(name: str, plan: Plan, runs: list[SeedRun], png: str) -> list[s
     fin = [r for r in runs if r.finished]
     meta = fin[0].metadata if fin else None
     lines = [f"## {name}: {plan.description}", ""]
-    lines += [f"- env `{meta['env_id'] if meta else plan.env}`, scenario `{plan.scenario}`, "
+    lines += [f"- env `{ENV_SHORT_NAMES.get(plan.env, plan.env)}`, scenario `{plan.scenario}`, "
               f"{plan.algo.upper()}, hyperparameter preset `{plan.hyperparams}`, training "
               f"reward `{plan.reward}`, time feature {'on' if plan.time_feature else 'off'}"
               + (f", goal bonus {plan.goal_bonus:g}/s" if plan.goal_bonus else ""),
