@@ -24,13 +24,28 @@ Preprocessing (part of the agent, never of the env; standard Gymnasium wrappers 
    after training, saved as a pickle).
 3. :class:`NormalizedAction`: the policy acts in ``[-1, 1]^m``; the wrapper maps affinely onto the
    env's action box ``[low, high]``.
+4. Optionally :class:`TimeFeature` (between 1 and 2): the fraction of the episode still to go,
+   ``1 - t / T`` (``t`` steps since reset, ``T`` the time limit in steps), appended to the
+   features. The agent counts its own ``act`` calls since :meth:`RLAgent.reset` for it, so it
+   still acts on the plain env.
+
+Training-only reward wrappers (recorded in the model's metadata under ``training_wrappers``; the
+saved agent never sees a reward, and every evaluation runs on the plain registered env):
+
+- :class:`BoundedShiftReward`: the task's reward without its time-dependent termination penalty,
+  shifted by ``dt * bound`` on every step that does not terminate. Every trajectory's return
+  changes by the same constant ``T * dt * bound``, so it ranks policies exactly as the task does
+  (see the class docstring for the derivation from :mod:`gp_envs.base`).
+- :class:`GoalBonusReward`: a declared shaping term, ``bonus * dt`` on every step that ends inside
+  the goal tolerance (``info["at_goal"]``). This one does change the task.
 
 A saved agent is a directory::
 
     model.zip          SB3 model (policy weights; no replay buffer)
     vecnormalize.pkl   VecNormalize statistics (only if observation normalization was used)
-    metadata.json      algorithm, env id, scenario, spaces, preprocessing, hyperparameters, seed,
-                       training steps, wall-clock training time, library versions
+    metadata.json      algorithm, env id, scenario, spaces, preprocessing, training wrappers,
+                       hyperparameters, seed, training steps, wall-clock training time,
+                       library versions
 
 stable-baselines3 and torch are imported at the top of this module; the core package does not
 import it eagerly, so ``gp_envs``/``gp_agents`` work without the RL extra.
@@ -38,6 +53,7 @@ import it eagerly, so ``gp_envs``/``gp_agents`` work without the RL extra.
 
 from __future__ import annotations
 
+import copy
 import json
 import pickle
 from collections.abc import Mapping, Sequence
@@ -54,8 +70,9 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
-__all__ = ["ALGORITHMS", "AngleFeatures", "NormalizedAction", "RLAgent", "make_training_vec_env",
-           "rollout", "wrap_env"]
+__all__ = ["ALGORITHMS", "AngleFeatures", "BoundedShiftReward", "GoalBonusReward",
+           "NormalizedAction", "RLAgent", "TimeFeature", "get_env_state", "make_training_vec_env",
+           "rollout", "set_env_state", "termination_terms", "wrap_env"]
 
 ALGORITHMS: dict[str, type[BaseAlgorithm]] = {"sac": SAC, "ppo": PPO}
 """Supported SB3 algorithms by lower-case name."""
@@ -151,15 +168,172 @@ def scale_action(action: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.nd
     return np.clip(u.astype(np.float32), low.astype(np.float32), high.astype(np.float32))
 
 
-def wrap_env(env: gym.Env, angle_indices: Sequence[int]) -> gym.Env:
-    """The agent's per-env preprocessing: :class:`AngleFeatures` then :class:`NormalizedAction`."""
-    return NormalizedAction(AngleFeatures(env, angle_indices))
+def time_feature(steps: int, max_steps: int) -> float:
+    """``1 - steps / max_steps``: the fraction of the episode still to go (1 at reset, 0 at the
+    time limit); ``steps`` env steps since reset, ``max_steps`` the time limit in steps."""
+    return 1.0 - float(steps) / float(max_steps)
+
+
+class TimeFeature(gym.Wrapper):
+    """Observation wrapper: append :func:`time_feature` of the steps since reset.
+
+    The same feature as sb3-contrib's ``TimeFeatureWrapper`` (rl-baselines3-zoo's TQC entries for
+    the Bullet swing-up and locomotion tasks), written here so the agent can rebuild it from its
+    own step count at evaluation time without the wrapper.
+
+    Args:
+        env: an env with a 1-D ``Box`` observation space and a time limit.
+        max_steps: the time limit in steps (default: ``env.spec.max_episode_steps``).
+    """
+
+    def __init__(self, env: gym.Env, max_steps: int | None = None) -> None:
+        super().__init__(env)
+        if max_steps is None:
+            spec = env.spec
+            max_steps = spec.max_episode_steps if spec is not None else None
+        if not max_steps or max_steps <= 0:
+            raise ValueError("TimeFeature needs a positive max_steps (or an env with a time limit)")
+        self.max_steps = int(max_steps)
+        box = env.observation_space
+        if not isinstance(box, spaces.Box) or len(box.shape) != 1:
+            raise ValueError(f"TimeFeature needs a 1-D Box observation space, got {box}")
+        self.observation_space = spaces.Box(np.append(box.low, 0.0).astype(np.float32),
+                                            np.append(box.high, 1.0).astype(np.float32),
+                                            dtype=np.float32)
+        self._t = 0
+
+    def _with_time(self, obs: np.ndarray) -> np.ndarray:
+        return np.append(np.asarray(obs, np.float32),
+                         np.float32(time_feature(self._t, self.max_steps)))
+
+    def reset(self, **kwargs: Any) -> tuple[np.ndarray, dict[str, Any]]:
+        """Reset the env and the step count."""
+        obs, info = self.env.reset(**kwargs)
+        self._t = 0
+        return self._with_time(obs), info
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        """Step the env; the returned observation carries the feature after this step."""
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        self._t += 1
+        return self._with_time(obs), reward, terminated, truncated, info
+
+
+def termination_terms(env: gym.Env) -> tuple[float, int, float]:
+    """``(dt, T, bound)`` of a ``gp_envs`` env's termination penalty.
+
+    :meth:`gp_envs.base.GPEnv.step` gives reward ``-dt * l(x_k, u_k)`` per step and, on the
+    step ``k`` (1-based) that terminates, subtracts ``(T - k + 1) * dt * bound`` (``T`` the
+    episode's steps, ``bound`` the upper bound of the stage cost ``l`` per second over the state
+    and action boxes). These are read from the env (``dt`` in s, ``bound`` per s).
+
+    Raises:
+        TypeError: not a ``gp_envs`` env.
+    """
+    base = env.unwrapped
+    if not all(hasattr(base, a) for a in ("DT", "_max_steps", "_cost_bound", "_steps")):
+        raise TypeError(f"{type(base).__name__} is not a gp_envs env (no termination penalty)")
+    return float(base.DT), int(base._max_steps), float(base._cost_bound)
+
+
+class BoundedShiftReward(gym.Wrapper):
+    """Training reward: the task's reward with the termination penalty replaced by a bounded shift.
+
+    Reward on a step that does not terminate: ``r + dt * bound``; on the step that terminates:
+    ``r + (T - k + 1) * dt * bound``, i.e. the penalty of :meth:`gp_envs.base.GPEnv.step` is
+    removed and the step gets no shift (``dt, T, bound`` from :func:`termination_terms`).
+
+    Why this ranks policies exactly as the task does: for a trajectory that terminates at step
+    ``k`` the task's return is ``C_k - (T - k + 1) dt bound`` (``C_k`` the summed ``-dt l``), the
+    shifted one ``C_k + (k - 1) dt bound``; for one that runs to the time limit they are ``C_T``
+    and ``C_T + T dt bound``. Both differ by the same constant ``T * dt * bound``
+    (:attr:`return_offset`). Shifting every step including the terminating one (``r + dt
+    bound`` everywhere, no penalty) would not be exact: terminated trajectories would gain one
+    extra ``dt * bound`` (the ``+ 1`` in the env's remaining-step count). Per-step rewards lie in
+    ``[0, dt * bound]`` (``l <= bound`` inside the boxes) and ``-dt * bound <= r <= 0`` on the
+    terminating step, instead of a penalty of up to ``(T + 1) dt bound`` that depends on the time
+    left, which the policy does not observe.
+    """
+
+    def __init__(self, env: gym.Env) -> None:
+        super().__init__(env)
+        self.dt, self.max_steps, self.bound = termination_terms(env)
+        self.return_offset = self.max_steps * self.dt * self.bound
+        """Shifted return minus the task's return, for every trajectory (reward units)."""
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        """Step; the reward is the shifted one (see the class docstring)."""
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        if terminated:
+            k = self.env.unwrapped._steps
+            reward = float(reward) + (max(self.max_steps - k, 0) + 1) * self.dt * self.bound
+        else:
+            reward = float(reward) + self.dt * self.bound
+        return obs, reward, terminated, truncated, info
+
+
+class GoalBonusReward(gym.Wrapper):
+    """Declared shaping toward the success region: ``+ bonus * dt`` on every step whose resulting
+    observation is inside the goal tolerance (``info["at_goal"]``).
+
+    Args:
+        env: a ``gp_envs`` env (its info carries ``at_goal``).
+        bonus: reward per second spent inside the tolerance (reward units per s, > 0).
+    """
+
+    def __init__(self, env: gym.Env, bonus: float) -> None:
+        super().__init__(env)
+        if not (np.isfinite(bonus) and bonus > 0):
+            raise ValueError(f"bonus must be positive and finite, got {bonus}")
+        self.bonus = float(bonus)
+        self.dt = float(env.unwrapped.DT)
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        """Step; adds ``bonus * dt`` when ``info["at_goal"]``."""
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        if info.get("at_goal", False):
+            reward = float(reward) + self.bonus * self.dt
+        return obs, reward, terminated, truncated, info
+
+
+def wrap_env(env: gym.Env, angle_indices: Sequence[int], time_limit: int | None = None
+             ) -> gym.Env:
+    """The agent's per-env preprocessing: :class:`AngleFeatures`, then :class:`TimeFeature` if
+    ``time_limit`` (steps) is given, then :class:`NormalizedAction`."""
+    env = AngleFeatures(env, angle_indices)
+    if time_limit is not None:
+        env = TimeFeature(env, time_limit)
+    return NormalizedAction(env)
+
+
+def training_wrappers_record(env: gym.Env, reward_shift: bool, goal_bonus: float,
+                             time_feature_on: bool) -> list[dict[str, Any]]:
+    """The metadata record of the training-only wrappers (and the time feature) on ``env``."""
+    rec: list[dict[str, Any]] = []
+    if reward_shift:
+        dt, t_max, bound = termination_terms(env)
+        rec.append({"name": "BoundedShiftReward", "dt_s": dt, "episode_steps": t_max,
+                    "stage_cost_bound_per_s": bound, "shift_per_step": dt * bound,
+                    "return_offset": t_max * dt * bound,
+                    "what": "r + dt*bound on non-terminating steps, termination penalty removed "
+                            "(terminating step unshifted); return = task return + offset for "
+                            "every trajectory"})
+    if goal_bonus:
+        rec.append({"name": "GoalBonusReward", "bonus_per_s": float(goal_bonus),
+                    "what": "+ bonus*dt on steps ending inside the goal tolerance "
+                            "(info['at_goal']); changes the task"})
+    if time_feature_on:
+        rec.append({"name": "TimeFeature", "max_steps": int(env.spec.max_episode_steps),
+                    "what": "observation + [1 - t/T]; the agent rebuilds it from its act count"})
+    return rec
 
 
 def make_training_vec_env(env_id: str, scenario: str, seed: int, n_envs: int = 1,
-                          norm_obs: bool = True, norm_reward: bool = False, gamma: float = 0.99
-                          ) -> VecNormalize:
-    """Vectorized training env: ``gym.make`` -> :func:`wrap_env` -> Monitor -> VecNormalize.
+                          norm_obs: bool = True, norm_reward: bool = False, gamma: float = 0.99,
+                          reward_shift: bool = False, goal_bonus: float = 0.0,
+                          time_feature_on: bool = False) -> VecNormalize:
+    """Vectorized training env: ``gym.make`` -> training reward wrappers -> :func:`wrap_env` ->
+    Monitor -> VecNormalize.
 
     Args:
         env_id: registered id, e.g. ``"gp_envs/CartPoleSwingUp-v0"``.
@@ -168,16 +342,74 @@ def make_training_vec_env(env_id: str, scenario: str, seed: int, n_envs: int = 1
         n_envs: number of sub-envs (``DummyVecEnv``, one process).
         norm_obs, norm_reward: VecNormalize options (reward normalization is training-only).
         gamma: discount used by VecNormalize's return estimate for reward normalization.
+        reward_shift: apply :class:`BoundedShiftReward`.
+        goal_bonus: if > 0, apply :class:`GoalBonusReward` with this bonus per second.
+        time_feature_on: append :class:`TimeFeature` to the observation features.
     """
     import gp_envs  # noqa: F401  (registers the envs)
 
     def factory() -> gym.Env:
         env = gym.make(env_id, scenario=scenario)
-        return Monitor(wrap_env(env, env.unwrapped.nominal_model.angle_indices))
+        angles = env.unwrapped.nominal_model.angle_indices
+        limit = env.spec.max_episode_steps if time_feature_on else None
+        if reward_shift:
+            env = BoundedShiftReward(env)
+        if goal_bonus:
+            env = GoalBonusReward(env, goal_bonus)
+        return Monitor(wrap_env(env, angles, limit))
 
     venv = DummyVecEnv([factory] * n_envs)
     venv.seed(seed)
     return VecNormalize(venv, norm_obs=norm_obs, norm_reward=norm_reward, gamma=gamma)
+
+
+# --------------------------------------------------------------------------- env state
+_SKIP_LAYER_KEYS = frozenset({"env", "results_writer", "_saved_kwargs", "_metadata",
+                              "_cached_spec"})
+_BASE_KEYS = ("_state", "_steps", "_held", "_np_random", "_np_random_seed")
+
+
+def get_env_state(env: gym.Env) -> dict[str, Any]:
+    """Everything that evolves while a (wrapped) ``gp_envs`` env runs, as a picklable dict.
+
+    The env itself does not pickle (its CasADi models hold mapping proxies), so a training
+    checkpoint stores this instead: every wrapper layer's attributes except the wrapped env and
+    spaces (step counters, Monitor accumulators, the checker's flags), and the base env's state,
+    step and hold counters, RNG and this episode's true and nominal parameter values.
+    """
+    layers = []
+    e = env
+    while isinstance(e, gym.Wrapper):
+        layers.append({k: copy.deepcopy(v) for k, v in vars(e).items()
+                       if k not in _SKIP_LAYER_KEYS and not isinstance(v, spaces.Space)})
+        e = e.env
+    base = {k: copy.deepcopy(getattr(e, k)) for k in _BASE_KEYS if k in vars(e)}
+    return {"layers": layers, "base": base, "base_type": type(e).__name__,
+            "plant_params": dict(e._plant.params), "nominal_params": dict(e.nominal_model.params)}
+
+
+def set_env_state(env: gym.Env, state: Mapping[str, Any]) -> None:
+    """Put ``env`` (built like the one :func:`get_env_state` read) into that state.
+
+    Raises:
+        ValueError: the wrapper chain or the base env differ from the recorded ones.
+    """
+    layers = []
+    e = env
+    while isinstance(e, gym.Wrapper):
+        layers.append(e)
+        e = e.env
+    if len(layers) != len(state["layers"]) or type(e).__name__ != state["base_type"]:
+        raise ValueError("env state was recorded for a different wrapper chain or env")
+    for layer, attrs in zip(layers, state["layers"], strict=True):
+        for k, v in attrs.items():
+            setattr(layer, k, copy.deepcopy(v))
+    for k, v in state["base"].items():
+        setattr(e, k, copy.deepcopy(v))
+    if dict(e._plant.params) != dict(state["plant_params"]):
+        e._plant = e._make_model(dict(state["plant_params"]))
+    if dict(e.nominal_model.params) != dict(state["nominal_params"]):
+        e.nominal_model = e._make_model(dict(state["nominal_params"]))
 
 
 # --------------------------------------------------------------------------- agent
@@ -194,7 +426,9 @@ class RLAgent:
         metadata: the record saved next to the model; must contain ``algo``, ``env_id``,
             ``scenario``, ``obs_shape``, ``action_shape``, ``action_low``, ``action_high``,
             ``angle_indices``; may contain ``training_steps``, ``seed``, ``hyperparameters``,
-            ``train_time_s``.
+            ``train_time_s``, ``time_feature_max_steps`` (the policy input ends with
+            :func:`time_feature`; then :meth:`act` must be called once per env step after
+            :meth:`reset`), ``training_wrappers``.
         obs_normalizer: frozen ``VecNormalize`` whose ``normalize_obs`` is applied to the
             features, or None.
         deterministic: act with the policy's mean action (default) instead of sampling.
@@ -227,10 +461,19 @@ class RLAgent:
         self.angle_indices = tuple(int(i) for i in metadata["angle_indices"])
         self._low = np.asarray(metadata["action_low"], dtype=np.float64)
         self._high = np.asarray(metadata["action_high"], dtype=np.float64)
+        tf = metadata.get("time_feature_max_steps")
+        self.time_feature_max_steps: int | None = int(tf) if tf else None
+        self.steps_since_reset = 0
+        """Number of :meth:`act` calls since :meth:`reset` (the time feature's step count)."""
 
     # ------------------------------------------------------------------ acting
-    def preprocess(self, obs: np.ndarray) -> np.ndarray:
-        """(n,) raw observation -> (n + k,) float32 policy input (features, normalized).
+    def preprocess(self, obs: np.ndarray, steps: int | None = None) -> np.ndarray:
+        """(n,) raw observation -> (n + k [+ 1],) float32 policy input (features, normalized).
+
+        Args:
+            obs: (n,) observation in physical units.
+            steps: env steps since reset for the time feature (default
+                :attr:`steps_since_reset`); ignored without a time feature.
 
         Raises:
             ValueError: ``obs`` has the wrong shape or is not finite.
@@ -241,6 +484,9 @@ class RLAgent:
         if not np.all(np.isfinite(x)):
             raise ValueError(f"obs must be finite, got {x}")
         feats = angle_features(x, self.angle_indices)
+        if self.time_feature_max_steps is not None:
+            t = self.steps_since_reset if steps is None else int(steps)
+            feats = np.append(feats, np.float32(time_feature(t, self.time_feature_max_steps)))
         if self.obs_normalizer is not None:
             feats = np.asarray(self.obs_normalizer.normalize_obs(feats[None]), np.float32)[0]
         return feats
@@ -260,6 +506,7 @@ class RLAgent:
         """
         det = self.deterministic if deterministic is None else bool(deterministic)
         a, _ = self.model.predict(self.preprocess(obs)[None], deterministic=det)
+        self.steps_since_reset += 1
         return scale_action(np.asarray(a).reshape(self.action_shape), self._low, self._high)
 
     def observe(self, obs: np.ndarray, action: np.ndarray, next_obs: np.ndarray) -> None:
@@ -273,7 +520,9 @@ class RLAgent:
         del obs, action, next_obs
 
     def reset(self) -> None:
-        """Start of an episode; the policies here are memoryless, so nothing to reset."""
+        """Start of an episode: the step count of the time feature restarts at 0 (the policies
+        are otherwise memoryless)."""
+        self.steps_since_reset = 0
 
     # ------------------------------------------------------------------ persistence
     @classmethod
@@ -298,6 +547,8 @@ class RLAgent:
             "action_high": env.action_space.high.astype(float).tolist(),
             "angle_indices": [int(i) for i in base.nominal_model.angle_indices],
             "preprocessing": ["AngleFeatures (cos, sin of angle_indices)",
+                              *(["TimeFeature (1 - t/T appended)"]
+                                if extra.get("time_feature_max_steps") else []),
                               "VecNormalize observation statistics (frozen)",
                               "NormalizedAction ([-1, 1] -> action box)"],
             "versions": {"stable_baselines3": stable_baselines3.__version__,
@@ -306,18 +557,30 @@ class RLAgent:
         }
 
     def save(self, path: str | Path) -> Path:
-        """Write the agent to directory ``path`` (created); returns the directory."""
+        """Write the agent to directory ``path`` (created); returns the directory.
+
+        Each file is written under a temporary name and renamed into place, ``metadata.json``
+        last, so an interrupted save never leaves a metadata file next to a partial model.
+        """
         out = Path(path)
         out.mkdir(parents=True, exist_ok=True)
-        self.model.save(out / MODEL_FILE, exclude=["replay_buffer", "rollout_buffer"])
+        tmp = out / ".saving"
+        tmp.mkdir(exist_ok=True)
+        self.model.save(tmp / MODEL_FILE, exclude=["replay_buffer", "rollout_buffer"])
         vec = out / VECNORM_FILE
         if self.obs_normalizer is not None:
-            self.obs_normalizer.save(str(vec))
-        elif vec.exists():
-            vec.unlink()
+            self.obs_normalizer.save(str(tmp / VECNORM_FILE))
         meta = dict(self.metadata, training_steps=self.training_steps,
                     obs_normalization=self.obs_normalizer is not None)
-        (out / METADATA_FILE).write_text(json.dumps(meta, indent=2, sort_keys=True) + "\n")
+        (tmp / METADATA_FILE).write_text(json.dumps(meta, indent=2, sort_keys=True) + "\n")
+        (out / METADATA_FILE).unlink(missing_ok=True)
+        (tmp / MODEL_FILE).replace(out / MODEL_FILE)
+        if self.obs_normalizer is not None:
+            (tmp / VECNORM_FILE).replace(vec)
+        else:
+            vec.unlink(missing_ok=True)
+        (tmp / METADATA_FILE).replace(out / METADATA_FILE)
+        tmp.rmdir()
         return out
 
     @classmethod

@@ -1,7 +1,15 @@
-"""Tests of the RL baseline (gp_agents.rl, benchmarks.train_rl): load, act, checks, wrappers."""
+"""Tests of the RL baseline (gp_agents.rl, benchmarks.train_rl): load, act, checks, wrappers,
+training reward wrappers, resumable training."""
 
 from __future__ import annotations
 
+import csv
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -10,10 +18,26 @@ pytest.importorskip("stable_baselines3")
 
 import gymnasium as gym
 import numpy as np
+import torch
+from stable_baselines3.common.monitor import Monitor
 
-import gp_envs  # noqa: F401  (registers the envs)
-from benchmarks.train_rl import train
-from gp_agents.rl import AngleFeatures, NormalizedAction, RLAgent, angle_features, wrap_env
+import gp_envs  # registers the envs
+from benchmarks.train_rl import CURVE_FIELDS, latest_checkpoint, train
+from gp_agents.rl import (
+    AngleFeatures,
+    BoundedShiftReward,
+    GoalBonusReward,
+    NormalizedAction,
+    RLAgent,
+    TimeFeature,
+    angle_features,
+    get_env_state,
+    set_env_state,
+    termination_terms,
+    wrap_env,
+)
+
+REPO = Path(__file__).resolve().parents[1]
 
 MODELS = Path(__file__).resolve().parents[1] / "benchmarks" / "models"
 SHIPPED = {
@@ -135,3 +159,290 @@ def test_wrapped_env_steps_in_unit_box() -> None:
     assert obs.shape == (4,)
     obs, _r, _te, _tr, info = env.step(np.ones(2, np.float32))
     assert not info["action_clipped"] and env.observation_space.contains(obs)
+
+
+# --------------------------------------------------------------------------- training wrappers
+def _episode(env: gym.Env, actions: np.ndarray, seed: int) -> tuple[float, int, bool]:
+    env.reset(seed=seed)
+    ret = 0.0
+    for k, a in enumerate(actions, start=1):
+        _obs, r, te, tr, _info = env.step(a)
+        ret += r
+        if te or tr:
+            return ret, k, te
+    raise AssertionError("episode did not end")
+
+
+@pytest.mark.parametrize("env_id", gp_envs.ENV_IDS)
+def test_bounded_shift_changes_every_return_by_the_same_constant(env_id: str) -> None:
+    plain = gym.make(env_id)
+    shifted = BoundedShiftReward(gym.make(env_id))
+    dt, t_max, bound = termination_terms(plain)
+    assert shifted.return_offset == pytest.approx(t_max * dt * bound)
+    m = plain.action_space.shape[0]
+    lo, hi = plain.action_space.low, plain.action_space.high
+    rng = np.random.default_rng(0)
+    # full force leaves the box early (Dubins: straight at the obstacle); the cost's reference
+    # control (cart at rest, hover thrust, standing still) runs to the time limit
+    u_ref = plain.unwrapped.nominal_model.task.u_ref
+    plans = [np.tile(hi, (t_max, 1)), np.tile(lo, (t_max, 1)), np.tile(u_ref, (t_max, 1)),
+             np.tile(np.where(lo < 0, 0.0, hi), (t_max, 1)), rng.uniform(lo, hi, size=(t_max, m))]
+    ends = set()
+    for actions in plans:
+        r_plain, k, term = _episode(plain, actions, seed=3)
+        r_shift, k2, term2 = _episode(shifted, actions, seed=3)
+        assert (k, term) == (k2, term2)
+        ends.add(term)
+        # the same constant for trajectories that terminate early and ones that do not
+        assert r_shift - r_plain == pytest.approx(shifted.return_offset, rel=1e-9, abs=1e-6)
+        if term:  # shifting the terminating step too would be off by one step's bound
+            naive = r_plain + (t_max - k + 1) * dt * bound + k * dt * bound
+            assert naive - r_plain != pytest.approx(shifted.return_offset)
+    assert ends == {True, False}
+
+
+def test_shifted_rewards_are_bounded() -> None:
+    env = BoundedShiftReward(gym.make("gp_envs/CartPoleSwingUp-v0"))
+    env.reset(seed=0)
+    step = env.dt * env.bound
+    for _ in range(200):
+        _o, r, te, tr, _ = env.step(np.array([35.0], np.float32))
+        assert (-step - 1e-9 <= r <= 0.0) if te else (0.0 <= r <= step + 1e-9)
+        if te or tr:
+            env.reset()
+
+
+def test_goal_bonus_only_at_goal() -> None:
+    base = gym.make("gp_envs/CartPoleSwingUp-v0")
+    env = GoalBonusReward(gym.make("gp_envs/CartPoleSwingUp-v0"), bonus=2.0)
+    for e in (base, env):
+        e.reset(seed=0, options={"state": np.array([0.0, np.pi, 0.0, 0.0])})
+    _, r0, *_ = base.step(np.zeros(1))
+    _, r1, _, _, info = env.step(np.zeros(1))
+    assert info["at_goal"] and r1 == pytest.approx(r0 + 2.0 * 0.05)
+    for e in (base, env):
+        e.reset(seed=0)
+    _, r0, *_ = base.step(np.zeros(1))
+    _, r1, _, _, info = env.step(np.zeros(1))
+    assert not info["at_goal"] and r1 == r0
+    with pytest.raises(ValueError):
+        GoalBonusReward(base, bonus=0.0)
+
+
+def test_time_feature() -> None:
+    env = TimeFeature(gym.make("gp_envs/CartPoleSwingUp-v0"))
+    obs, _ = env.reset(seed=0)
+    assert obs.shape == (5,) and obs[-1] == 1.0 and env.observation_space.contains(obs)
+    for k in range(1, 121):
+        obs, _r, te, tr, _ = env.step(np.zeros(1))
+        assert obs[-1] == pytest.approx(1 - k / 120)
+        if te or tr:
+            break
+    assert tr and obs[-1] == pytest.approx(0.0)
+    assert env.reset()[0][-1] == 1.0
+
+
+@pytest.mark.parametrize("env_id", gp_envs.ENV_IDS)
+def test_env_state_round_trip(env_id: str) -> None:
+    def make() -> gym.Env:
+        e = BoundedShiftReward(gym.make(env_id))
+        return Monitor(wrap_env(e, e.unwrapped.nominal_model.angle_indices, 120))
+
+    rng = np.random.default_rng(1)
+    a_env, b_env = make(), make()
+    a_env.reset(seed=5)
+    acts = rng.uniform(-0.3, 0.3, size=(400, a_env.action_space.shape[0])).astype(np.float32)
+    for a in acts[:37]:
+        *_, te, tr, _ = a_env.step(a)
+        if te or tr:
+            a_env.reset()
+    b_env.reset(seed=99)  # another episode, then overwritten
+    set_env_state(b_env, get_env_state(a_env))
+    assert (b_env.unwrapped.nominal_model.params == a_env.unwrapped.nominal_model.params)
+    for a in acts[37:]:  # across episode ends and seedless resets (same RNG stream)
+        oa, ra, tea, tra, _ = a_env.step(a)
+        ob, rb, teb, trb, _ = b_env.step(a)
+        np.testing.assert_array_equal(oa, ob)
+        assert (ra, tea, tra) == (rb, teb, trb)
+        if tea or tra:
+            np.testing.assert_array_equal(a_env.reset()[0], b_env.reset()[0])
+            assert (b_env.unwrapped.nominal_model.params
+                    == a_env.unwrapped.nominal_model.params)
+
+
+# --------------------------------------------------------------------------- resumable training
+TINY_SAC = {"learning_starts": 64, "buffer_size": 5000}
+
+
+def _tiny_sac(out: Path, steps: int, stop_after: int | None = None, **kw: object) -> RLAgent:
+    return train("cartpole", "online", "sac", steps, seed=5, out=out, eval_freq=160,
+                 eval_episodes=1, checkpoint_freq=160, stop_after=stop_after,
+                 hyperparams="sac-swingup", reward="bounded-shift", time_feature=True,
+                 overrides=TINY_SAC, progress=False, echo=lambda _m: None, **kw)
+
+
+def _curve(path: Path) -> list[dict[str, str]]:
+    with open(path / "learning_curve.csv", newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+def _without_wall(rows: list[dict[str, str]]) -> list[dict[str, str]]:
+    return [{k: v for k, v in r.items() if k != "wall_time_s"} for r in rows]
+
+
+@pytest.fixture(scope="module")
+def sac_runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, object]:
+    """A tiny SAC run (gSDE, bounded shift, time feature) to 480 steps in one go, and the same
+    command interrupted at 240 and resumed."""
+    root = tmp_path_factory.mktemp("sac_resume")
+    whole = _tiny_sac(root / "whole", 480)
+    half = _tiny_sac(root / "resumed", 480, stop_after=240)
+    half_curve = _curve(root / "resumed")
+    assert not (root / "resumed" / "metadata.json").exists()
+    resumed = _tiny_sac(root / "resumed", 480)
+    return {"root": root, "whole": whole, "half": half, "half_curve": half_curve,
+            "resumed": resumed}
+
+
+def test_resumed_sac_is_bit_identical(sac_runs: dict) -> None:
+    root = sac_runs["root"]
+    whole, resumed = _curve(root / "whole"), _curve(root / "resumed")
+    assert list(whole[0]) == list(CURVE_FIELDS)
+    assert [int(r["timesteps"]) for r in whole] == [0, 160, 320, 480]
+    # the rows up to the interruption, and (SB3 permitting, which it does) all rows after it
+    assert [int(r["timesteps"]) for r in sac_runs["half_curve"]] == [0, 160]
+    assert _without_wall(sac_runs["half_curve"]) == _without_wall(whole[:2])
+    assert _without_wall(resumed) == _without_wall(whole)
+    pa = sac_runs["whole"].model.policy.state_dict()
+    pb = sac_runs["resumed"].model.policy.state_dict()
+    assert all(torch.equal(pa[k], pb[k]) for k in pa)
+    meta = json.loads((root / "resumed" / "metadata.json").read_text())
+    assert meta["training_steps"] == 480 and len(meta["sessions"]) == 2
+    assert meta["time_feature_max_steps"] == 120
+    assert [w["name"] for w in meta["training_wrappers"]] == ["BoundedShiftReward", "TimeFeature"]
+    assert "--reward bounded-shift" in meta["command"] and "--time-feature" in meta["command"]
+    assert latest_checkpoint(root / "resumed" / "checkpoints").name == "ckpt_0000000480"
+    assert len(list((root / "resumed" / "checkpoints").glob("ckpt_*"))) == 1
+
+
+def test_saved_time_feature_agent_acts_like_training_policy(sac_runs: dict) -> None:
+    root = sac_runs["root"]
+    env = gym.make("gp_envs/CartPoleSwingUp-v0", scenario="online")
+    agent = RLAgent.load(root / "whole", env)
+    trained = sac_runs["whole"]
+    assert agent.time_feature_max_steps == 120
+    wrapped = TimeFeature(AngleFeatures(gym.make("gp_envs/CartPoleSwingUp-v0", scenario="online"),
+                                        (1,)))
+    obs, _ = env.reset(seed=4)
+    feats, _ = wrapped.reset(seed=4)
+    agent.reset()
+    for _ in range(30):
+        np.testing.assert_allclose(agent.preprocess(obs),
+                                   trained.obs_normalizer.normalize_obs(feats[None])[0],
+                                   rtol=1e-6)
+        a = agent.act(obs)
+        obs, *_ = env.step(a)
+        feats, *_ = wrapped.step(a)
+    agent.reset()
+    assert agent.steps_since_reset == 0
+
+
+def test_finished_run_is_not_retrained_and_config_is_checked(sac_runs: dict) -> None:
+    root = sac_runs["root"]
+    again = _tiny_sac(root / "whole", 480)
+    assert again.training_steps == 480
+    with pytest.raises(ValueError, match="another configuration"):
+        train("cartpole", "online", "sac", 480, seed=6, out=root / "whole", eval_freq=160,
+              eval_episodes=1, checkpoint_freq=160, hyperparams="sac-swingup",
+              reward="bounded-shift", time_feature=True, overrides=TINY_SAC, progress=False,
+              echo=lambda _m: None)
+
+
+def test_finished_run_extends_from_its_checkpoint(sac_runs: dict) -> None:
+    root = sac_runs["root"]
+    longer = _tiny_sac(root / "resumed", 640)
+    rows = _curve(root / "resumed")
+    assert longer.training_steps == 640 and int(rows[-1]["timesteps"]) == 640
+    assert _without_wall(rows[:4]) == _without_wall(_curve(root / "whole"))
+
+
+def test_resumed_ppo_is_bit_identical(tmp_path: Path) -> None:
+    kw = {"eval_freq": 256, "eval_episodes": 1, "checkpoint_freq": 256, "progress": False,
+          "echo": lambda _m: None,
+          "overrides": {"n_envs": 2, "n_steps": 64, "batch_size": 64, "n_epochs": 2}}
+    whole = train("cartpole", "online", "ppo", 768, seed=2, out=tmp_path / "a", **kw)
+    train("cartpole", "online", "ppo", 768, seed=2, out=tmp_path / "b", stop_after=256, **kw)
+    resumed = train("cartpole", "online", "ppo", 768, seed=2, out=tmp_path / "b", **kw)
+    assert _without_wall(_curve(tmp_path / "a")) == _without_wall(_curve(tmp_path / "b"))
+    pa, pb = whole.model.policy.state_dict(), resumed.model.policy.state_dict()
+    assert all(torch.equal(pa[k], pb[k]) for k in pa)
+    np.testing.assert_array_equal(whole.obs_normalizer.ret_rms.var,
+                                  resumed.obs_normalizer.ret_rms.var)
+
+
+def test_killed_cli_run_resumes_to_the_total(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    cmd = [sys.executable, "-m", "benchmarks.train_rl", "--env", "cartpole", "--scenario",
+           "online", "--algo", "sac", "--steps", "200", "--seed", "1", "--eval-freq", "100",
+           "--eval-episodes", "1", "--checkpoint-freq", "50", "--out", str(out)]
+    env = dict(os.environ, PYTHONPATH=str(REPO), OMP_NUM_THREADS="1")
+    proc = subprocess.Popen(cmd, cwd=REPO, env=env, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 45
+        while latest_checkpoint(out / "checkpoints") is None:
+            assert proc.poll() is None, "training exited before its first checkpoint"
+            assert time.monotonic() < deadline, "no checkpoint written"
+            time.sleep(0.2)
+    finally:
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+    assert not (out / "metadata.json").exists()
+    done = subprocess.run(cmd, cwd=REPO, env=env, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "resuming" in done.stdout
+    meta = json.loads((out / "metadata.json").read_text())
+    assert meta["training_steps"] == 200
+    rows = _curve(out)
+    assert [int(r["timesteps"]) for r in rows] == [0, 100, 200]
+    RLAgent.load(out, gym.make("gp_envs/CartPoleSwingUp-v0", scenario="online"))
+
+
+# --------------------------------------------------------------------------- multi-seed summary
+def test_median_iqr_ci() -> None:
+    from benchmarks.rl_summary import median_iqr_ci
+
+    st = median_iqr_ci([5.0, 1.0, 3.0, 2.0, 4.0])
+    assert (st["median"], st["q25"], st["q75"], st["n"]) == (3.0, 2.0, 4.0, 5)
+    assert 1.0 <= st["ci_lo"] <= st["median"] <= st["ci_hi"] <= 5.0
+    assert st == median_iqr_ci([1.0, 2.0, 3.0, 4.0, 5.0])  # fixed bootstrap generator
+    one = median_iqr_ci([0.5])
+    assert one["median"] == 0.5 and np.isnan(one["ci_lo"]) and np.isnan(one["ci_hi"])
+
+
+def test_summary_from_tiny_runs(sac_runs: dict, tmp_path: Path,
+                                monkeypatch: pytest.MonkeyPatch) -> None:
+    import shutil
+
+    import benchmarks.rl_summary as summary
+    from benchmarks.rl_runs import Plan
+
+    root = tmp_path / "runs"
+    for seed in (0, 1):
+        shutil.copytree(sac_runs["root"] / "whole", root / f"seed{seed}",
+                        ignore=shutil.ignore_patterns("checkpoints"))
+    plan = Plan(env="cartpole", scenario="online", algo="sac", hyperparams="sac-swingup",
+                steps=480, seeds=(0, 1, 2), reward="bounded-shift", time_feature=True,
+                eval_freq=160, eval_episodes=1, checkpoint_freq=160, root=root,
+                description="tiny")
+    monkeypatch.setitem(summary.PLANS, "tiny", plan)
+    path = summary.write_summary(["tiny"], out=tmp_path / "out")
+    text = path.read_text()
+    assert "**2 finished**" in text and "1 not started" in text
+    assert "| success rate |" in text and "BoundedShiftReward" in text
+    with open(tmp_path / "out" / "tiny_final_eval.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == 40 and sorted({int(r["episode_seed"]) for r in rows}) == list(range(20))
+    # the two copies are the same policy: the same episodes
+    assert [r["cost"] for r in rows[:20]] == [r["cost"] for r in rows[20:]]
+    assert (tmp_path / "out" / "tiny_curves.png").stat().st_size > 10_000
