@@ -154,13 +154,13 @@ def _mean(values: Sequence[float]) -> float:
 
 def mean_ci(values: Sequence[float], confidence: float = 0.95) -> tuple[float, float]:
     """Bootstrap interval of the mean over seeds (scipy's BCa, 9,999 resamples, fixed random
-    state so the report is a function of the trials); (nan, nan) below 2 finite values, the
-    value twice if they are all equal."""
+    state so the report is a function of the trials); (nan, nan) below 5 finite values (a
+    bootstrap of fewer says nothing), the value twice if they are all equal."""
     from scipy.stats import bootstrap
 
     arr = np.asarray([v for v in values if v is not None], float)
     arr = arr[np.isfinite(arr)]
-    if arr.size < 2:
+    if arr.size < 5:
         return math.nan, math.nan
     if np.ptp(arr) == 0:
         return float(arr[0]), float(arr[0])
