@@ -70,6 +70,8 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
+from gp_agents.agent import rollout as closed_loop
+
 __all__ = ["ALGORITHMS", "AngleFeatures", "BoundedShiftReward", "GoalBonusReward",
            "NormalizedAction", "RLAgent", "TimeFeature", "get_env_state", "make_training_vec_env",
            "rollout", "set_env_state", "termination_terms", "wrap_env"]
@@ -643,7 +645,7 @@ class RLAgent:
 
 
 def rollout(agent: RLAgent, env: gym.Env, seed: int) -> dict[str, Any]:
-    """One episode of ``agent`` in ``env`` in the plain loop (reset, act, step, observe).
+    """One episode of ``agent`` in ``env`` (:func:`gp_agents.agent.rollout`), summarized.
 
     Args:
         agent: the agent (anything with ``reset``, ``act`` and ``observe``).
@@ -656,19 +658,10 @@ def rollout(agent: RLAgent, env: gym.Env, seed: int) -> dict[str, Any]:
         (steps), ``final_distance`` (``info["distance_to_goal"]`` at the end, in the task's
         units) and ``end`` (termination reason or "time limit").
     """
-    agent.reset()
-    obs, info = env.reset(seed=seed)
-    ret, steps, ever = 0.0, 0, False
-    while True:
-        action = agent.act(obs)
-        next_obs, reward, terminated, truncated, info = env.step(action)
-        agent.observe(obs, action, next_obs)
-        obs = next_obs
-        ret += float(reward)
-        steps += 1
-        ever = ever or bool(info.get("is_success", False))
-        if terminated or truncated:
-            break
-    return {"return": ret, "success": bool(info.get("is_success", False)), "success_any": ever,
-            "length": steps, "final_distance": float(info.get("distance_to_goal", np.nan)),
+    ep = closed_loop(env, agent, seed)
+    info = ep.final_info
+    ever = any(bool(i.get("is_success", False)) for i in ep.infos)
+    return {"return": -ep.cost, "success": bool(info.get("is_success", False)),
+            "success_any": ever, "length": ep.steps,
+            "final_distance": float(info.get("distance_to_goal", np.nan)),
             "end": info.get("termination_reason") or "time limit"}
