@@ -32,12 +32,12 @@ one period of these systems to within ~1e-9 of the plant's RK4 step (``tests/tes
 
 
 RTI_QP_SOLVER: dict[str, str] = {"cartpole": "proxqp", "quadrotor": "proxqp", "dubins": "proxqp"}
-"""QP solver of the real-time iteration's step per system (``scheme="rti"``), by measurement:
-nominal RTI, seed 0 (cart pole and quadrotor `gp`, Dubins), osqp / proxqp / qrqp in lockstep
-on one loaded 2-core machine, median RTI step: cart pole 10.1 / 7.3 / 11.0 ms, quadrotor
-16.2 / 15.5 / 48.9 ms, Dubins 10.0 / 9.0 / 15.4 ms (qrqp: 35 rejected steps instead of 13),
-the same closed-loop costs otherwise. hpipm cannot take the pseudospectral NLP's structure (one
-dense LG interval is no stage-wise OCP); daqp needs a positive definite Hessian."""
+"""QP solver of the real-time iteration's step per system (``scheme="rti"``), by measurement
+(``python -m benchmarks.rti_qp_solvers``, ``benchmarks/results/rti_qp_solvers.md``): proxqp
+had the shortest median RTI step on every system (cart pole 1.59 ms against osqp's 2.19 and
+qrqp's 2.67; quadrotor 4.62 / 5.70 / 17.49; Dubins 1.44 / 1.69 / 7.15) at the same closed-loop
+costs. hpipm cannot take the pseudospectral NLP's structure (one dense LG interval is no
+stage-wise OCP); daqp needs a positive definite Hessian."""
 
 
 class RecedingHorizon:
