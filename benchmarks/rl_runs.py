@@ -6,7 +6,8 @@ wrappers, env steps and seeds. For each seed in turn the driver runs
 ``OMP_NUM_THREADS=1``; the script sets ``torch.set_num_threads(1)``) with its output appended to
 ``benchmarks/results/rl/logs/<plan>_seed<K>.log``. A seed whose ``metadata.json`` records the
 plan's steps is skipped; an unfinished one resumes from its last checkpoint (train_rl's own
-resume), so re-running the same driver command after an interruption continues where it was::
+resume), so re-running the same driver command after an interruption continues where it was
+(``--seeds 0 2 4`` and ``--seeds 1 3`` in two drivers train on both cores)::
 
     nohup python -m benchmarks.rl_runs --plan cartpole_online_sac --commit --summary \\
         >> benchmarks/results/rl/logs/driver.log 2>&1 &
@@ -174,15 +175,26 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--summary", action="store_true",
                         help="after each finished seed, regenerate (and with --commit, "
                              "commit) benchmarks/results/rl/summary.md")
+    parser.add_argument("--seeds", type=int, nargs="+", default=None,
+                        help="run only these of each plan's seeds (two drivers with disjoint "
+                             "seeds use both cores)")
     parser.add_argument("--python", default=sys.executable, help="interpreter for training")
     args = parser.parse_args(argv)
+    for name in args.plan:
+        unknown = sorted(set(args.seeds or ()) - set(PLANS[name].seeds))
+        if unknown:
+            parser.error(f"--seeds {unknown} are not seeds of plan {name!r} "
+                         f"(its seeds: {list(PLANS[name].seeds)})")
     LOGS.mkdir(parents=True, exist_ok=True)
-    (LOGS / "driver.pid").write_text(f"{os.getpid()}\n")
+    tag = "" if args.seeds is None else "_seeds" + "-".join(map(str, args.seeds))
+    (LOGS / f"driver{tag}.pid").write_text(f"{os.getpid()}\n")
     log(f"driver pid {os.getpid()}: plans {args.plan}")
     failures = []
     for name in args.plan:
         plan = PLANS[name]
         for seed in plan.seeds:
+            if args.seeds is not None and seed not in args.seeds:
+                continue
             if finished(plan, name, seed):
                 log(f"{name} seed {seed}: finished already, skipped")
                 continue
