@@ -32,6 +32,7 @@ controller *unavailable* for that env, which the runner records instead of crash
 
 from __future__ import annotations
 
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -40,6 +41,7 @@ import gymnasium as gym
 
 import gp_envs
 from gp_agents.mpc import GPInNLP
+from gp_envs.systems import SYSTEMS
 
 MODELS_DIR = Path(__file__).resolve().parent / "models"
 """Where the shipped RL policies live: ``<env short name>/<algo>/``."""
@@ -57,12 +59,23 @@ class EnvInfo:
     default_scenario: str
 
 
-ENVS: dict[str, EnvInfo] = {
-    "cartpole": EnvInfo("gp_envs/CartPoleSwingUp-v0", ("gp", "online"), "online"),
-    "quadrotor": EnvInfo("gp_envs/Quadrotor-v0", ("gp", "online"), "online"),
-    "dubins": EnvInfo("gp_envs/DubinsObstacle-v0", ("paper",), "paper"),
-}
-"""Benchmark envs by short name."""
+class _BenchmarkEnvs(Mapping[str, EnvInfo]):
+    """The registered systems (:data:`gp_envs.SYSTEMS`) as benchmark envs, by short name (live:
+    a system registered after import is a benchmark env too)."""
+
+    def __getitem__(self, name: str) -> EnvInfo:
+        system = SYSTEMS[name]
+        return EnvInfo(system.env_id, system.scenarios, system.default_scenario)
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(SYSTEMS)
+
+    def __len__(self) -> int:
+        return len(SYSTEMS)
+
+
+ENVS: Mapping[str, EnvInfo] = _BenchmarkEnvs()
+"""Benchmark envs by short name: every registered system (:func:`gp_envs.register_system`)."""
 
 
 @dataclass(frozen=True)

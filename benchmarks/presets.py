@@ -253,6 +253,21 @@ def rti(seeds: Sequence[int] = tuple(range(10)),
         specs, ("acceptance", "summary", "step_times", "scaling"))
 
 
+def pendulum(seeds: Sequence[int] = tuple(range(1, 11))) -> Experiment:
+    """The fourth system, registered in one file (:mod:`gp_envs.pendulum_swingup`)."""
+    controllers = ("nominal-mpc", "ssgp-mpc", "ssgp-mpc-linearized", "oracle-mpc",
+                   "nominal-mpc-rti", "ssgp-mpc-rti")
+    return Experiment(
+        "pendulum", "Pendulum swing-up: a system added in one file",
+        "The damped pendulum (`gp_envs/PendulumSwingUp-v0`, scenario `damped`: unmodeled pivot "
+        "friction and a 10% mass error), registered by one `register_system` call next to "
+        "its env class, run by the same recipes as the paper's systems: nominal, SSGP (GP in "
+        "the NLP, and linearized), oracle MPC and the real-time iterations, on seeds 1-10 "
+        "(seed 0 chose the registered horizon).",
+        episodes(controllers, [("pendulum", "damped")], seeds),
+        ("summary", "trajectories", "step_times"))
+
+
 def quick() -> Experiment:
     """A couple of minutes: the main controllers on every env, one or two seeds."""
     ssgp = ("ssgp-mpc", "ssgp-mpc-linearized")
@@ -262,6 +277,7 @@ def quick() -> Experiment:
                       (0,))
     specs += episodes(("nominal-mpc", *ssgp, "oracle-mpc", "ppo"), [("dubins", "paper")],
                       (0, 1))
+    specs += episodes(("nominal-mpc", "ssgp-mpc", "oracle-mpc"), [("pendulum", "damped")], (1,))
     specs += tuple(TrialSpec("ssgp-update-time", "cartpole", "online", "ssgp", 0, param=r)
                    for r in (25, 50, 100))
     specs += (TrialSpec("peers", "cartpole", "gp", "ps-vs-do-mpc", 0),)
@@ -270,7 +286,8 @@ def quick() -> Experiment:
         "Nominal, offline-GP, SSGP (GP in the NLP, and linearized per node) and oracle MPC and "
         "the shipped SAC policy on the cart pole (`online`, seeds 0-1); nominal, both SSGP and "
         "oracle MPC and PPO on the quadrotor "
-        "(`online`, seed 0) and the Dubins vehicle (seeds 0-1); SSGP update time for r = 25, "
+        "(`online`, seed 0) and the Dubins vehicle (seeds 0-1); nominal, SSGP and oracle MPC "
+        "on the pendulum (`damped`, seed 1); SSGP update time for r = 25, "
         "50, 100; one episode each of this project's MPC and do-mpc (if installed).",
         specs, ("summary", "trajectories", "paths", "step_times", "sample_efficiency",
                 "update_time", "peers"))
@@ -293,6 +310,8 @@ PRESETS: dict[str, Preset] = {
                             (speed_options(),)),
     "linearized": Preset("linearized", "acceptance runs of the linearized SSGP-MPC "
                          "(not part of full)", (linearized(),)),
+    "pendulum": Preset("pendulum", "the fourth system, added in one file (not part of full)",
+                       (pendulum(),)),
     "rti": Preset("rti", "real-time iteration vs converged MPC, with the peers comparison "
                   "(not part of full)", (rti(), peers())),
     "full": Preset("full", "everything: all experiments above except quick",

@@ -80,16 +80,14 @@ from gp_agents.rl import (
     set_env_state,
     training_wrappers_record,
 )
+from gp_envs.systems import SYSTEMS
 
 MODELS = Path(__file__).resolve().parent / "models"
 REPO = Path(__file__).resolve().parents[1]
 
-ENV_SHORT_NAMES = {
-    "cartpole": "gp_envs/CartPoleSwingUp-v0",
-    "quadrotor": "gp_envs/Quadrotor-v0",
-    "dubins": "gp_envs/DubinsObstacle-v0",
-}
-"""``--env`` short names (also the model directory names) -> registered env ids."""
+ENV_SHORT_NAMES = {name: system.env_id for name, system in SYSTEMS.items()}
+"""``--env`` short names (the registered systems' names, also the model directory names) ->
+registered env ids."""
 
 EVAL_SEED0 = 1000
 """First reset seed of the learning-curve evaluation episodes (final evaluation: 0..19)."""

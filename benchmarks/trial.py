@@ -35,6 +35,7 @@ from benchmarks.controllers import (
     make_env,
 )
 from gp_agents.agent import rollout
+from gp_envs.systems import get_system
 
 STATUS_OK = "ok"
 STATUS_ERROR = "error"
@@ -123,8 +124,8 @@ def run_episode(spec: TrialSpec) -> dict[str, Any]:
         termination = "max steps"
     final = observations[-1]
     position_error = float("nan")
-    if spec.env in ("quadrotor", "dubins"):
-        k = 3 if spec.env == "quadrotor" else 2
+    k = get_system(spec.env).position_dims
+    if k:
         position_error = float(np.linalg.norm(final[:k] - goal[:k]))
     act = episode.act_times
     is_mpc = recipe.family == "mpc"

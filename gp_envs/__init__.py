@@ -1,10 +1,14 @@
 """Gymnasium environments whose true physical parameters are hidden from the controller.
 
-Importing this package registers (Gymnasium 1.x does not auto-load entry points):
+Importing this package registers these systems (:mod:`gp_envs.systems`: one
+:func:`register_system` call each, at the end of its env module, gives the Gymnasium id, the
+controllers' defaults and the benchmark entry):
 
 - ``gp_envs/CartPoleSwingUp-v0``: :class:`gp_envs.cartpole_swingup.CartPoleSwingUpEnv`
 - ``gp_envs/Quadrotor-v0``: :class:`gp_envs.quadrotor.QuadrotorEnv`
 - ``gp_envs/DubinsObstacle-v0``: :class:`gp_envs.dubins_obstacle.DubinsObstacleEnv`
+- ``gp_envs/PendulumSwingUp-v0``: :class:`gp_envs.pendulum_swingup.PendulumSwingUpEnv` (a
+  fourth, small system, the example of adding one)
 
 ``gym.make("gp_envs:gp_envs/CartPoleSwingUp-v0")`` imports and registers in one go.
 
@@ -15,25 +19,34 @@ What a controller may know is ``env.unwrapped.nominal_model`` (a :class:`Control
 from __future__ import annotations
 
 import gymnasium as gym
-from gymnasium.envs.registration import register, registry
 
+from gp_envs import (  # noqa: F401  (each module registers its system)
+    cartpole_swingup,
+    dubins_obstacle,
+    pendulum_swingup,
+    quadrotor,
+)
 from gp_envs.model import ControlModel, Obstacle, Task
+from gp_envs.systems import (
+    SYSTEMS,
+    PlanningDefaults,
+    System,
+    get_system,
+    load_system_plugins,
+    register_system,
+    unregister_system,
+)
 
-__all__ = ["ENV_IDS", "ControlModel", "Obstacle", "Task", "oracle_model"]
+__all__ = ["ENV_IDS", "SYSTEMS", "ControlModel", "Obstacle", "PlanningDefaults", "System",
+           "Task", "get_system", "oracle_model", "register_system", "unregister_system"]
 
 __version__ = "0.1.0"
 
-ENV_IDS = ("gp_envs/CartPoleSwingUp-v0", "gp_envs/Quadrotor-v0", "gp_envs/DubinsObstacle-v0")
-"""The registered environment ids."""
+ENV_IDS = tuple(SYSTEMS[name].env_id for name in ("cartpole", "quadrotor", "dubins", "pendulum"))
+"""The ids of the built-in systems' envs (registered on import; :data:`SYSTEMS` also lists
+installed packages' systems and those registered later)."""
 
-_ENTRY_POINTS = {
-    "gp_envs/CartPoleSwingUp-v0": ("gp_envs.cartpole_swingup:CartPoleSwingUpEnv", 120),
-    "gp_envs/Quadrotor-v0": ("gp_envs.quadrotor:QuadrotorEnv", 120),
-    "gp_envs/DubinsObstacle-v0": ("gp_envs.dubins_obstacle:DubinsObstacleEnv", 150),
-}
-for _env_id, (_entry, _steps) in _ENTRY_POINTS.items():
-    if _env_id not in registry:
-        register(id=_env_id, entry_point=_entry, max_episode_steps=_steps)
+load_system_plugins()
 
 
 def oracle_model(env: gym.Env) -> ControlModel:

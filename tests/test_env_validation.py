@@ -208,6 +208,8 @@ _RANGES = {
     "gp_envs/Quadrotor-v0": {"m": _POSITIVE, "Jx": _POSITIVE, "Jy": _POSITIVE, "Jz": _POSITIVE,
                              "L": _POSITIVE, "g": _POSITIVE},
     "gp_envs/DubinsObstacle-v0": {"b1": _LOSS, "b2": _LOSS},
+    "gp_envs/PendulumSwingUp-v0": {"m": _POSITIVE, "l": _POSITIVE, "b": _NONNEGATIVE,
+                                   "g": _POSITIVE},
 }
 _OUTSIDE = {_POSITIVE: [0.0, -1.0, -1e-9], _NONNEGATIVE: [-1e-9, -0.3], _LOSS: [1.0, 1.5]}
 _INSIDE = {_POSITIVE: [1e-6, 3.0], _NONNEGATIVE: [0.0, 2.0], _LOSS: [-0.5, 0.0, 0.999]}
@@ -227,9 +229,9 @@ def _message(env_id: str, name: str, value: float) -> str:
 
 
 def test_the_invalid_value_tables_cover_every_parameter():
-    from gp_envs.physics import cartpole, dubins, quadrotor
+    from gp_envs.physics import cartpole, dubins, pendulum, quadrotor
 
-    for env_id, module in zip(ENV_IDS, (cartpole, quadrotor, dubins), strict=True):
+    for env_id, module in zip(ENV_IDS, (cartpole, quadrotor, dubins, pendulum), strict=True):
         assert set(_RANGES[env_id]) == set(module.PARAM_NAMES) == set(module.PARAM_RANGES)
         assert {k: str(r) for k, r in module.PARAM_RANGES.items()} == _RANGES[env_id]
 
@@ -361,7 +363,7 @@ def _wrong_shapes(m: int) -> list[tuple[int, ...]]:
     return list(dict.fromkeys(shapes))  # without repeats
 
 
-_SHAPE_CASES = [(env_id, shape) for env_id, m in zip(ENV_IDS, (1, 4, 2), strict=True)
+_SHAPE_CASES = [(env_id, shape) for env_id, m in zip(ENV_IDS, (1, 4, 2, 1), strict=True)
                 for shape in _wrong_shapes(m)]
 
 

@@ -9,7 +9,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env as gym_check_env
 
 import gp_envs
-from gp_envs.physics import cartpole
+from gp_envs.physics import cartpole, pendulum
 
 ENV_IDS = list(gp_envs.ENV_IDS)
 
@@ -49,6 +49,47 @@ def test_cartpole_damping_never_adds_energy():
             e_new = _energy(x, model)
             assert e_new <= e + 1e-9
             e = e_new
+
+
+# ------------------------------------------------------------------------ pendulum physics
+def _pendulum_model(**params):
+    return make("gp_envs/PendulumSwingUp-v0").unwrapped.nominal_model.with_params(**params)
+
+
+def test_pendulum_energy_conserved_without_friction():
+    model = _pendulum_model(b=0.0)
+    x = np.array([0.5, 3.0])
+    e0 = float(pendulum.mechanical_energy(x, model.param_vector))
+    for _ in range(100):  # 5 s
+        x = model.step(x, [0.0])
+        assert float(pendulum.mechanical_energy(x, model.param_vector)) == pytest.approx(
+            e0, abs=1e-6 * max(1.0, abs(e0)))
+
+
+def test_pendulum_power_balance_is_torque_minus_friction():
+    """dE/dt = thd (tau - b thd), from the energy and the ODE by differentiation."""
+    model = _pendulum_model(b=0.3)
+    x, u = ca.SX.sym("x", 2), ca.SX.sym("u", 1)
+    e = pendulum.mechanical_energy(x, model.param_vector)
+    fn = ca.Function("edot", [x, u], [ca.jtimes(e, x, model.f(x, u))])
+    rng = np.random.default_rng(2)
+    for _ in range(10):
+        s, tau = rng.uniform(-4, 4, size=2), rng.uniform(-2, 2)
+        assert float(fn(s, tau)) == pytest.approx(s[1] * (tau - 0.3 * s[1]), abs=1e-9)
+
+
+def test_pendulum_small_oscillation_period():
+    """Undamped, unforced, small amplitude: period 2 pi sqrt(l / g)."""
+    model = _pendulum_model(b=0.0)
+    x, t, crossings = np.array([0.01, 0.0]), 0.0, []
+    while len(crossings) < 3:
+        x_new = model.step(x, [0.0])
+        if x[1] > 0 >= x_new[1]:  # a maximum of theta, interpolated
+            crossings.append(t + model.dt * x[1] / (x[1] - x_new[1]))
+        x, t = x_new, t + model.dt
+    p = model.params
+    assert np.diff(crossings).mean() == pytest.approx(2 * np.pi * np.sqrt(p["l"] / p["g"]),
+                                                      rel=2e-3)
 
 
 def test_cartpole_paper_sign_of_b2_would_add_energy():
@@ -282,6 +323,7 @@ _SECRET = {
                                    "b1": 0.2718281, "b2": 0.3141592},
     "gp_envs/Quadrotor-v0": {"m": 1.0123457, "L": 0.2412345},
     "gp_envs/DubinsObstacle-v0": {"b1": 0.2987651, "b2": 0.3123457},
+    "gp_envs/PendulumSwingUp-v0": {"m": 1.0234567, "l": 0.5123457, "b": 0.2876543},
 }
 
 

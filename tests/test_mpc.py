@@ -387,13 +387,22 @@ def test_quadrotor_nominal_mass_error_leaves_a_height_offset():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("seed", [0, 1])
-def test_ssgp_mpc_swings_up_the_damped_cart_pole(seed):
-    env = gym.make(CART, scenario="online")
-    agent = PseudospectralMPC.from_env(env, online_ssgp())
-    agent.pretrain(collect_initial_data(env, 200, seed=seed))
-    _, _, info = run_episode(env, agent, seed=seed)
-    assert info["success"]
+def test_ssgp_mpc_swings_up_the_damped_cart_pole():
+    """The README's claim, through the benchmark's own recipe (``ssgp-mpc`` trials), on the
+    README's first seeds 0-3: at least 3 of 4 swing up (the nominal MPC: none).
+
+    A single episode is not a robust test: the swing-up is marginal, and the last bits of the
+    learner's linear algebra (BLAS kernels differ between CPUs and thread counts) flip seed 0
+    between a swing-up (cost 33.1) and leaving the track (cost 240.6) on some hosts. Each
+    host is deterministic; the rate over seeds is what holds across hosts."""
+    from benchmarks.trial import TrialSpec, execute
+
+    records = [execute(TrialSpec("episode", "cartpole", "online", "ssgp-mpc", s))
+               for s in range(4)]
+    assert all(r["status"] == "ok" for r in records), [r.get("error") for r in records]
+    successes = [bool(r["metrics"]["success"]) for r in records]
+    assert sum(successes) >= 3, [(r["metrics"]["cost"], s) for r, s in zip(records, successes,
+                                                                         strict=True)]
 
 
 @pytest.mark.slow

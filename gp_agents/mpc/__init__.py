@@ -24,13 +24,11 @@ from gp_agents.mpc.learned_term import LearnedTerm, NoLearnedTerm
 from gp_agents.mpc.ocp import Constraints, Mesh, build_ocp
 from gp_agents.mpc.planner import CAPPED_STATUSES, Plan, Planner
 from gp_agents.mpc.planning_model import PlanningModel
-from gp_agents.mpc.schedule import DEFAULT_SETTINGS, EPISODIC_SETTINGS, Episodic, RecedingHorizon
+from gp_agents.mpc.schedule import Episodic, RecedingHorizon, planning_defaults
 
 __all__ = [
     "CAPPED_STATUSES",
     "COLD_START_LINEARIZATIONS",
-    "DEFAULT_SETTINGS",
-    "EPISODIC_SETTINGS",
     "LEARNED_TERMS",
     "MAX_LEARNED_MODEL_SIZE",
     "Constraints",
@@ -48,4 +46,5 @@ __all__ = [
     "StepRecord",
     "build_ocp",
     "online_ssgp",
+    "planning_defaults",
 ]

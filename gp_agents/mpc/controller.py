@@ -35,13 +35,7 @@ from gp_agents.mpc.ocp import Constraints
 from gp_agents.mpc.planner import Plan, Planner
 from gp_agents.mpc.planning_model import PlanningModel
 from gp_agents.mpc.rti import RTIPlanner
-from gp_agents.mpc.schedule import (
-    DEFAULT_SETTINGS,
-    EPISODIC_SETTINGS,
-    RTI_QP_SOLVER,
-    Episodic,
-    RecedingHorizon,
-)
+from gp_agents.mpc.schedule import Episodic, RecedingHorizon, planning_defaults
 from gp_agents.residual import ResidualModel
 from gp_envs.model import ControlModel
 
@@ -70,7 +64,10 @@ class PseudospectralMPC:
             physics). It must be fitted before the first ``act`` (:meth:`pretrain`).
         mode: ``"receding"`` (Algorithm 1) or ``"episodic"`` (plan once over the task's whole
             duration at the first ``act``, execute open loop; no learning).
-        horizon: receding horizon in seconds (default per system, :data:`DEFAULT_SETTINGS`).
+        horizon: receding horizon in seconds (default: the system's registered
+            :class:`gp_envs.systems.PlanningDefaults`, as for ``n_nodes``, ``n_intervals``,
+            the episodic nodes per period and ``qp_solver``; required for an unregistered
+            system).
         n_nodes, n_intervals: LG nodes per interval and intervals after the held periods.
         replan_every: ``p``, periods executed from each plan (all held in the plan).
         held_nodes: LG nodes of each held period (episodic: of every period).
@@ -89,7 +86,8 @@ class PseudospectralMPC:
         scheme: ``"converged"`` (every plan solved to convergence) or ``"rti"`` (a converged
             solve at a cold start, then one Gauss-Newton SQP step per replan:
             :class:`~gp_agents.mpc.rti.RTIPlanner`).
-        qp_solver: the RTI step's QP solver (default per system, :data:`RTI_QP_SOLVER`).
+        qp_solver: the RTI step's QP solver (default per system, chosen by measurement:
+            :func:`~gp_agents.mpc.schedule.planning_defaults`).
     """
 
     def __init__(self, model: ControlModel, learner: Any | None = None, *,
@@ -107,26 +105,29 @@ class PseudospectralMPC:
                  qp_solver: str | None = None) -> None:
         if not isinstance(model, ControlModel):
             raise TypeError(f"model must be a gp_envs ControlModel, got {type(model).__name__}")
+        defaults = planning_defaults(model)
         if mode == "receding":
-            d = DEFAULT_SETTINGS.get(model.name, {})
-            horizon = d.get("horizon") if horizon is None else horizon
-            if horizon is None or not (np.isfinite(horizon) and horizon > 0):
+            if horizon is None:
+                if defaults is None:
+                    raise ValueError(f"system {model.name!r} is not registered "
+                                     f"(gp_envs.register_system): pass horizon=")
+                horizon = defaults.horizon
+            if not (np.isfinite(horizon) and horizon > 0):
                 raise ValueError(f"horizon must be a positive number of seconds, got {horizon}")
             self.schedule: RecedingHorizon | Episodic = RecedingHorizon(
-                horizon, d.get("n_nodes", 12) if n_nodes is None else n_nodes,
-                d.get("n_intervals", 1) if n_intervals is None else n_intervals,
-                replan_every, held_nodes)
+                horizon, (defaults.n_nodes if defaults else 12) if n_nodes is None else n_nodes,
+                (defaults.n_intervals if defaults else 1) if n_intervals is None
+                else n_intervals, replan_every, held_nodes)
         elif mode == "episodic":
-            d = EPISODIC_SETTINGS.get(model.name, {})
             self.schedule = Episodic(model.task.duration if horizon is None else horizon,
-                                     d.get("nodes_per_period", held_nodes) if n_nodes is None
-                                     else n_nodes)
+                                     (defaults.nodes_per_period if defaults else held_nodes)
+                                     if n_nodes is None else n_nodes)
         else:
             raise ValueError(f"mode must be 'receding' or 'episodic', got {mode!r}")
         if scheme not in ("converged", "rti"):
             raise ValueError(f"scheme must be 'converged' or 'rti', got {scheme!r}")
         self.scheme = scheme
-        self.qp_solver = qp_solver or RTI_QP_SOLVER.get(model.name, "osqp")
+        self.qp_solver = qp_solver or (defaults.qp_solver if defaults else "osqp")
         if isinstance(learned_dynamics, str):
             if learned_dynamics not in LEARNED_TERMS:
                 raise ValueError(f"learned_dynamics must be one of {list(LEARNED_TERMS)} or a "

@@ -62,7 +62,8 @@ class RTIPlanner(Planner):
     Args:
         planning, mesh, constraints: as for :class:`Planner`.
         qp_solver: CasADi conic plugin for the step's QP (``"osqp"``, ``"qrqp"``, ``"hpipm"``,
-            ...; chosen per system by measurement, :data:`gp_agents.mpc.schedule.RTI_QP_SOLVER`).
+            ...; chosen per system by measurement,
+            :func:`gp_agents.mpc.schedule.planning_defaults`).
         qp_options: CasADi options of that plugin (default :data:`QP_SOLVER_OPTIONS`).
         max_violation: largest constraint violation of an accepted step (see module doc).
         **settings: the converged solver's settings (:class:`Planner`).

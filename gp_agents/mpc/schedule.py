@@ -6,38 +6,27 @@ Both make every period they execute from a plan a held interval of its mesh
 
 from __future__ import annotations
 
-from typing import Any
-
 from gp_agents.mpc.ocp import Mesh
 from gp_agents.mpc.planner import Plan
+from gp_envs.model import ControlModel
+from gp_envs.systems import SYSTEMS, PlanningDefaults
 
-__all__ = ["DEFAULT_SETTINGS", "EPISODIC_SETTINGS", "RTI_QP_SOLVER", "Episodic",
-           "RecedingHorizon"]
-
-DEFAULT_SETTINGS: dict[str, dict[str, Any]] = {
-    "cartpole": {"horizon": 1.5, "n_nodes": 16, "n_intervals": 1},
-    "quadrotor": {"horizon": 1.5, "n_nodes": 10, "n_intervals": 1},
-    "dubins": {"horizon": 4.0, "n_nodes": 12, "n_intervals": 2},
-}
-"""Receding-horizon settings per system: horizon (s), LG nodes per interval and intervals of
-the polynomial part after the held periods."""
-
-EPISODIC_SETTINGS: dict[str, dict[str, Any]] = {
-    "cartpole": {"nodes_per_period": 3},
-    "quadrotor": {"nodes_per_period": 3},
-    "dubins": {"nodes_per_period": 3},
-}
-"""Episodic settings per system: LG nodes in each held control period. Three nodes collocate
-one period of these systems to within ~1e-9 of the plant's RK4 step (``tests/test_mpc.py``)."""
+__all__ = ["Episodic", "RecedingHorizon", "planning_defaults"]
 
 
-RTI_QP_SOLVER: dict[str, str] = {"cartpole": "proxqp", "quadrotor": "proxqp", "dubins": "proxqp"}
-"""QP solver of the real-time iteration's step per system (``scheme="rti"``), by measurement
-(``python -m benchmarks.rti_qp_solvers``, ``benchmarks/results/rti_qp_solvers.md``): proxqp
-had the shortest median RTI step on every system (cart pole 1.59 ms against osqp's 2.19 and
-qrqp's 2.67; quadrotor 4.62 / 5.70 / 17.49; Dubins 1.44 / 1.69 / 7.15) at the same closed-loop
-costs. hpipm cannot take the pseudospectral NLP's structure (one dense LG interval is no
-stage-wise OCP); daqp needs a positive definite Hessian."""
+def planning_defaults(model: ControlModel) -> PlanningDefaults | None:
+    """The registered defaults of ``model``'s system (:class:`gp_envs.systems.PlanningDefaults`:
+    horizon, LG nodes and intervals, nodes per episodic period, the RTI step's QP solver), or
+    None for a model of an unregistered system (then the horizon must be given).
+
+    The QP solver defaults were chosen by measurement (``python -m benchmarks.rti_qp_solvers``,
+    ``benchmarks/results/rti_qp_solvers.md``): proxqp had the shortest median RTI step on the
+    cart pole, quadrotor and Dubins vehicle at the same closed-loop costs. hpipm cannot take the
+    pseudospectral NLP's structure (one dense LG interval is no stage-wise OCP); daqp needs a
+    positive definite Hessian.
+    """
+    name = model.name
+    return SYSTEMS[name].planning if name in SYSTEMS else None
 
 
 class RecedingHorizon:

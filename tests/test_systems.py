@@ -1,0 +1,240 @@
+"""One registration per system (gp_envs.systems): what it gives, what it refuses, and that the
+fourth system (the pendulum) needed no file but its own."""
+
+from __future__ import annotations
+
+import importlib
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import gp_envs
+from benchmarks.controllers import ENVS
+from benchmarks.trial import TrialSpec, execute
+from gp_agents import PseudospectralMPC, collect_initial_data
+from gp_agents.agent import rollout
+from gp_envs.systems import (
+    SYSTEMS,
+    PlanningDefaults,
+    System,
+    get_system,
+    register_system,
+    system_of,
+    unregister_system,
+)
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+# ----------------------------------------------------------------------- a user's own system
+# A damped point mass on a line, written the way a user would in their own package `userpm`:
+# a physics module named like the system, an env class, and the registration.
+_PHYSICS = """
+import casadi as ca
+from gp_envs.physics.ranges import ParamRange
+
+PARAM_RANGES = {"m": ParamRange.positive("mass, kg"), "c": ParamRange.nonnegative("damping, 1/s")}
+PARAM_NAMES = tuple(PARAM_RANGES)
+STATE_NAMES = ("p", "v")
+CONTROL_NAMES = ("f",)
+
+
+def ode(x, u, p):
+    return ca.vertcat(x[1], u[0] / p[0] - p[1] * x[1])
+"""
+_ENV = """
+import numpy as np
+from gp_envs.base import GPEnv, Scenario
+from gp_envs.model import Task, diag
+from gp_envs.systems import PlanningDefaults, System, register_system
+from userpm import pointmass
+
+
+class PointMassEnv(GPEnv):
+    physics = pointmass
+    SCENARIOS = {"default": Scenario("unmodeled damping", {"m": 1.0, "c": 0.5},
+                                     {"m": 1.0, "c": 0.0}, (-2.0,), (2.0,))}
+    DEFAULT_SCENARIO = "default"
+    DT, SUBSTEPS = 0.1, 4
+    X_LB, X_UB = np.array([-5.0, -5.0]), np.array([5.0, 5.0])
+    DYNAMIC_INDICES = (1,)
+
+    def _task(self):
+        return Task(goal=np.array([1.0, 0.0]), Q=diag([1.0, 0.1]), R=diag([0.01]),
+                    Qf=diag([10.0, 1.0]), u_ref=np.zeros(1),
+                    goal_tolerance=np.array([0.05, np.inf]), hold_time=0.5, duration=4.0)
+
+    def _initial_state(self):
+        return np.zeros(2)
+
+    def _render_frame(self, ax):
+        ax.plot(self._state[0], 0.0, "o")
+
+
+def data_policy(model, rng):
+    amp = rng.uniform(0.5, 1.0)
+    return lambda obs, t: np.array([amp * np.sin(2.0 * t)])
+
+
+SYSTEM = register_system(System(
+    name="pointmass", env_id="user/PointMass-v0", entry_point="userpm.env:PointMassEnv",
+    max_episode_steps=40, planning=PlanningDefaults(horizon=1.2, n_nodes=8),
+    data_policy=data_policy, data_start=(-1.0, 0.0), position_dims=1))
+"""
+
+
+def _write_plugin(root: Path, entry_module: str = "userpm.env") -> Path:
+    """The package ``userpm`` under ``root`` and an installed-distribution record declaring
+    ``entry_module`` in the ``gp_envs.systems`` entry-point group."""
+    pkg = root / "userpm"
+    pkg.mkdir(parents=True, exist_ok=True)
+    (pkg / "__init__.py").write_text("")
+    (pkg / "pointmass.py").write_text(_PHYSICS)
+    (pkg / "env.py").write_text(_ENV)
+    info = root / "userpm-0.1.dist-info"
+    info.mkdir(exist_ok=True)
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: userpm\nVersion: 0.1\n")
+    (info / "entry_points.txt").write_text(f"[gp_envs.systems]\npointmass = {entry_module}\n")
+    return root
+
+
+@pytest.fixture()
+def user_system(tmp_path):
+    sys.path.insert(0, str(_write_plugin(tmp_path)))
+    try:
+        yield importlib.import_module("userpm.env").SYSTEM
+    finally:
+        if "pointmass" in SYSTEMS:
+            unregister_system("pointmass")
+        for name in [m for m in sys.modules if m == "userpm" or m.startswith("userpm.")]:
+            del sys.modules[name]
+        sys.path.remove(str(tmp_path))
+
+
+def test_one_registration_gives_env_mpc_defaults_data_and_benchmark_entry(user_system):
+    env = gym.make("user/PointMass-v0")
+    assert env.spec.max_episode_steps == 40 and system_of(env) is user_system
+    agent = PseudospectralMPC.from_env(env)
+    assert agent.schedule.horizon == pytest.approx(1.2) and agent.qp_solver == "proxqp"
+    data = collect_initial_data(env, 30, seed=0)
+    assert data.X.shape == (30, 2)
+    np.testing.assert_allclose(data.X[0], [-1.0, 0.0])  # the registered data start
+    # the registered policy drove the data: the first action is amp * sin(0) + noise only
+    assert abs(data.U[0, 0]) < 0.5
+    ep = rollout(env, agent, 0)
+    assert ep.final_info["success"], ep.observations[-1]
+    assert "pointmass" in ENVS and ENVS["pointmass"].scenarios == ("default",)
+    record = execute(TrialSpec("episode", "pointmass", "default", "nominal-mpc", 0,
+                               max_steps=5))
+    assert record["status"] == "ok", record.get("error")
+    assert np.isfinite(record["metrics"]["final_position_error"])
+
+
+def test_unregister_removes_the_system_and_its_id(user_system):
+    unregister_system("pointmass")
+    assert "pointmass" not in SYSTEMS and "pointmass" not in ENVS
+    with pytest.raises(gym.error.Error):
+        gym.make("user/PointMass-v0")
+    register_system(user_system)  # for the fixture's teardown
+    assert gym.make("user/PointMass-v0") is not None
+
+
+def test_registration_refuses_inconsistent_systems(user_system):
+    base = user_system
+    with pytest.raises(ValueError, match="already registered"):
+        register_system(System(**{**base.__dict__, "max_episode_steps": 41}))
+    assert register_system(base) is base  # the identical system again is a no-op
+    with pytest.raises(ValueError, match=r"env id .* already registered"):
+        register_system(System(**{**base.__dict__, "name": "other"}))
+    with pytest.raises(ValueError, match="physics module 'pointmass'"):
+        register_system(System(**{**base.__dict__, "name": "pointmass2",
+                                  "env_id": "user/PM2-v0"}))
+    unregister_system("pointmass")
+    for change, message in [({"benchmark_scenarios": ("nope",)}, "not scenarios"),
+                            ({"max_episode_steps": 0}, "max_episode_steps"),
+                            ({"position_dims": 3}, "position_dims"),
+                            ({"data_start": (0.0,)}, "data_start")]:
+        with pytest.raises(ValueError, match=message):
+            register_system(System(**{**base.__dict__, **change}))
+        assert "pointmass" not in SYSTEMS and "user/PointMass-v0" not in gym.registry
+    register_system(base)
+
+
+@pytest.mark.parametrize(("kwargs", "message"), [
+    ({"horizon": 0.0, "n_nodes": 8}, "horizon"), ({"horizon": np.nan, "n_nodes": 8}, "horizon"),
+    ({"horizon": 1.0, "n_nodes": 0}, "n_nodes"), ({"horizon": 1.0, "n_nodes": 2.5}, "n_nodes"),
+    ({"horizon": 1.0, "n_nodes": 8, "n_intervals": 0}, "n_intervals")])
+def test_planning_defaults_are_checked(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        PlanningDefaults(**kwargs)
+
+
+def test_unknown_systems_are_named_errors():
+    with pytest.raises(ValueError, match=r"unknown system 'nope'; registered: \['cartpole'"):
+        get_system("nope")
+    with pytest.raises(ValueError, match="gp_envs env or a ControlModel"):
+        system_of(object())
+    model = gym.make("gp_envs/PendulumSwingUp-v0").unwrapped.nominal_model
+    unnamed = type(model)(**{**{k: getattr(model, k) for k in (
+        "ode", "param_names", "params", "state_names", "control_names", "dt", "x_lb", "x_ub",
+        "u_lb", "u_ub", "task", "substeps", "angle_indices", "dynamic_indices")},
+        "name": "unregistered", "param_ranges": model.param_ranges})
+    with pytest.raises(ValueError, match=r"not registered.*horizon="):
+        PseudospectralMPC(unnamed)
+    assert PseudospectralMPC(unnamed, horizon=1.0).schedule.horizon == 1.0
+
+
+def test_built_in_systems_are_registered_in_their_env_modules():
+    built_in = ("cartpole", "quadrotor", "dubins", "pendulum")
+    assert set(SYSTEMS) >= set(built_in)
+    assert tuple(SYSTEMS[n].env_id for n in built_in) == gp_envs.ENV_IDS
+    for system in SYSTEMS.values():
+        module = sys.modules[system.entry_point.split(":")[0]]
+        assert module.SYSTEM is system
+
+
+def test_the_pendulum_is_added_in_its_own_files_only():
+    """The fourth system needed no edit elsewhere: outside its physics module and env module,
+    only the package's import list (gp_envs/__init__, gp_envs/physics/__init__) and the
+    experiments that study it (benchmarks/presets.py) name it."""
+    allowed = {"gp_envs/pendulum_swingup.py", "gp_envs/physics/pendulum.py",
+               "gp_envs/__init__.py", "gp_envs/physics/__init__.py", "benchmarks/presets.py"}
+    named = {str(p.relative_to(REPO)) for pkg in ("gp_envs", "gp_agents", "benchmarks")
+             for p in (REPO / pkg).rglob("*.py")
+             if re.search(r"\bpendulum\b|PendulumSwingUp", p.read_text())}
+    assert named <= allowed, sorted(named - allowed)
+
+
+def _run(args: list[str], pythonpath: Path, cwd: Path) -> subprocess.CompletedProcess:
+    env = dict(os.environ, OMP_NUM_THREADS="1",
+               PYTHONPATH=os.pathsep.join([str(pythonpath), str(REPO)]))
+    return subprocess.run([sys.executable, *args], cwd=cwd, env=env, capture_output=True,
+                          text=True, timeout=600)
+
+
+@pytest.mark.slow
+def test_an_installed_plugin_system_runs_in_the_benchmarks_spawned_workers(tmp_path):
+    """Declared as an entry point, the user's system is registered in every process that
+    imports gp_envs: the benchmark CLI and its spawned worker process run it."""
+    root = _write_plugin(tmp_path / "site")
+    res = _run(["-m", "benchmarks", "--controllers", "nominal-mpc", "--envs", "pointmass",
+                "--seeds", "0", "--max-steps", "3", "--workers", "1", "--no-progress",
+                "--out", str(tmp_path / "out")], root, tmp_path)
+    assert res.returncode == 0, res.stderr[-2000:]
+    metrics = (tmp_path / "out" / "metrics.csv").read_text()
+    assert "pointmass" in metrics and "nominal-mpc" in metrics
+
+
+def test_a_broken_plugin_is_skipped_with_a_warning(tmp_path):
+    root = _write_plugin(tmp_path / "site", entry_module="userpm.missing")
+    res = _run(["-W", "always", "-c", "import gp_envs; print(sorted(gp_envs.SYSTEMS))"], root,
+               tmp_path)
+    assert res.returncode == 0, res.stderr
+    assert "system plugin 'pointmass' (userpm.missing) failed to load" in res.stderr
+    assert "'cartpole'" in res.stdout and "pointmass" not in res.stdout
