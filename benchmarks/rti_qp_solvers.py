@@ -5,7 +5,7 @@ The nominal MPC with ``scheme="rti"``, one agent per QP solver, all in lockstep 
 with the same seed (so a change of the machine's load slows them alike): closed-loop cost,
 rejected steps and the median RTI step. Run (one core)::
 
-    OMP_NUM_THREADS=1 python -m benchmarks.rti_qp_solvers [--systems cartpole,pendulum]
+    OMP_NUM_THREADS=1 python -m benchmarks.rti_qp_solvers [--systems cartpole,dubins]
 """
 
 from __future__ import annotations

@@ -9,7 +9,7 @@ frames, the nominal model ``env.unwrapped.nominal_model``) never hands out the t
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
@@ -22,6 +22,27 @@ from gp_envs.physics.ranges import ParamRange, check_value
 
 RANDOMIZE_RANGE = ParamRange(0.0, 1.0, True, False, "relative spread of the true parameters")
 """Valid values of the ``randomize`` option (dimensionless)."""
+
+
+NOISE_STREAM = 0x6F62736E6F697365
+"""Second key of the observation-noise generator's seed, ``default_rng([seed, NOISE_STREAM])``:
+the noise has its own stream, so the initial states and parameter draws of a seed are the same
+with and without noise."""
+
+
+@dataclass(frozen=True)
+class ParamChange:
+    """A step change of the true parameters during an episode (a time-varying scenario).
+
+    Attributes:
+        time: seconds after the reset; the control periods starting at or after it run on the
+            changed plant (and :func:`gp_envs.oracle_model` returns it from then on).
+        factors: multiplier per parameter name, relative to the episode's *initial* truth (its
+            randomized draw included); parameters not named keep their current value.
+    """
+
+    time: float
+    factors: Mapping[str, float]
 
 
 @dataclass(frozen=True)
@@ -38,6 +59,8 @@ class Scenario:
             nominal value around ``nominal`` (empty: nominal values are fixed).
         nominal_min, nominal_max: clip of drawn nominal values to the parameters' valid range
             (e.g. a loss factor ``b`` to ``[0, 0.9]`` so that ``1 - b`` stays positive).
+        changes: step changes of the truth during the episode, in time order (empty: the
+            truth is constant); hidden like the rest of the truth.
     """
 
     description: str
@@ -48,6 +71,7 @@ class Scenario:
     nominal_spread: Mapping[str, float] = field(default_factory=dict)
     nominal_min: float = -np.inf
     nominal_max: float = np.inf
+    changes: tuple[ParamChange, ...] = ()
 
 
 class GPEnv(gym.Env[np.ndarray, np.ndarray]):
@@ -79,12 +103,19 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
             by ``1 + U(-randomize, randomize)`` (``g`` is never randomized). A real number in
             ``[0, 1)`` (:data:`RANDOMIZE_RANGE`).
         render_mode: ``None``, ``"rgb_array"`` or ``"human"``.
+        observation_noise: standard deviation of zero-mean Gaussian noise added to each
+            observed state component, in that component's unit (a number for all, or one per
+            component; default 0: exact observations). Seeded by ``reset(seed=...)`` on its own
+            stream (:data:`NOISE_STREAM`). Only the observation is noisy: the plant, the reward,
+            ``info`` and the success criterion use the true state (the task is about the
+            system, not the sensor).
 
     Raises:
         ValueError: an unknown scenario, render mode or parameter name; ``randomize`` not a
             real number in ``[0, 1)`` (bools and strings included); a true parameter (after
             the overrides, and at either end of the ``randomize`` spread) outside its valid
-            range in the physics module's ``PARAM_RANGES``.
+            range in the physics module's ``PARAM_RANGES``, also after each of the scenario's
+            changes; ``observation_noise`` negative, not finite or of the wrong length.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array", "human"], "render_fps": 20}
@@ -105,7 +136,8 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
     """State components driven by forces (see :class:`ControlModel`)."""
 
     def __init__(self, scenario: str | None = None, true_params: Mapping[str, float] | None = None,
-                 randomize: float = 0.0, render_mode: str | None = None) -> None:
+                 randomize: float = 0.0, render_mode: str | None = None,
+                 observation_noise: float | Sequence[float] = 0.0) -> None:
         scenario = self.DEFAULT_SCENARIO if scenario is None else scenario
         if scenario not in self.SCENARIOS:
             raise ValueError(f"{type(self).__name__}: unknown scenario {scenario!r}; "
@@ -128,7 +160,12 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
         self._spec = spec
         self._plant = self._make_model(truth)  # checks the true parameters' ranges
         self._base_truth = dict(self._plant.params)
+        self._check_changes()
         self._check_randomized_range()
+        self.observation_noise = self._check_noise(observation_noise)
+        self._noise_rng: np.random.Generator | None = None
+        self._episode_truth = dict(self._base_truth)
+        self._next_change = 0
         self.nominal_model: ControlModel = self._make_model(dict(spec.nominal))
         """What a controller may know: nominal parameters, dynamics, bounds, task."""
 
@@ -182,6 +219,50 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
         """The true model of the current episode; only :func:`gp_envs.oracle_model` uses it."""
         return self._plant
 
+    def _check_noise(self, noise: float | Sequence[float]) -> np.ndarray:
+        n = len(self.physics.STATE_NAMES)
+        try:
+            raw = np.asarray(noise)
+            if raw.dtype.kind not in "iuf":  # no strings, bools or objects
+                raise TypeError
+            sd = np.broadcast_to(raw.astype(float), (n,)).copy()
+        except (TypeError, ValueError):
+            raise ValueError(f"{type(self).__name__}: observation_noise must be a number or "
+                             f"{n} numbers (standard deviations per observed component), got "
+                             f"{noise!r}") from None
+        if not np.all(np.isfinite(sd)) or np.any(sd < 0):
+            raise ValueError(f"{type(self).__name__}: observation_noise must be finite and "
+                             f">= 0, got {noise!r}")
+        return sd
+
+    def _changed(self, truth: Mapping[str, float], upto: int) -> dict[str, float]:
+        """``truth`` after the scenario's first ``upto`` changes."""
+        out = dict(truth)
+        for change in self._spec.changes[:upto]:
+            out.update({k: truth[k] * f for k, f in change.factors.items()})
+        return out
+
+    def _check_changes(self) -> None:
+        """The changes name known parameters, happen in order inside the episode, and every
+        truth they produce (at both ends of a ``randomize`` spread too) is physical."""
+        name = type(self).__name__
+        duration = self._task().duration
+        times = [c.time for c in self._spec.changes]
+        if times != sorted(times) or any(not 0 < t < duration for t in times):
+            raise ValueError(f"{name}: scenario changes must be in time order within "
+                             f"(0, {duration}) s, got times {times}")
+        for change in self._spec.changes:
+            unknown = set(change.factors) - set(self.physics.PARAM_NAMES)
+            if unknown:
+                raise ValueError(f"{name}: a scenario change names unknown parameter(s) "
+                                 f"{sorted(unknown)}")
+        for k in range(1, len(self._spec.changes) + 1):
+            try:
+                self._make_model(self._changed(self._base_truth, k))
+            except ValueError as err:
+                raise ValueError(f"{name}: after the scenario's change at "
+                                 f"{times[k - 1]} s, {err}") from None
+
     def _check_randomized_range(self) -> None:
         """Fail at construction, not at some later reset, if a randomized draw could leave a
         parameter's valid range: models at both ends of the spread go through the check."""
@@ -191,7 +272,8 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
             end = {k: v if k == "g" else v * (1.0 + sign * self.randomize)
                    for k, v in self._base_truth.items()}
             try:
-                self._make_model(end)
+                for k in range(len(self._spec.changes) + 1):
+                    self._make_model(self._changed(end, k))
             except ValueError as err:
                 raise ValueError(f"{type(self).__name__}: randomize={self.randomize} draws each "
                                  f"true parameter v in [v (1 - randomize), v (1 + randomize)); "
@@ -205,12 +287,31 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
                 if k != "g":
                     truth[k] *= 1.0 + rng.uniform(-self.randomize, self.randomize)
         self._plant = self._make_model(truth)
+        self._episode_truth, self._next_change = truth, 0
         if self._spec.nominal_spread:
             nominal = dict(self._spec.nominal)
             for k, sd in self._spec.nominal_spread.items():
                 nominal[k] = float(np.clip(rng.normal(nominal[k], sd), self._spec.nominal_min,
                                            self._spec.nominal_max))
             self.nominal_model = self._make_model(nominal)
+
+    def _apply_changes(self, time: float) -> None:
+        """Switch the plant to the truth after every change due by ``time`` (seconds)."""
+        changes = self._spec.changes
+        k = self._next_change
+        while k < len(changes) and changes[k].time <= time + 1e-9:
+            k += 1
+        if k != self._next_change:
+            self._next_change = k
+            self._plant = self._make_model(self._changed(self._episode_truth, k))
+
+    def _observed(self, state: np.ndarray) -> np.ndarray:
+        """The observation the agent gets of ``state``: :meth:`_observe` of the state plus the
+        sensor noise (none by default)."""
+        if self._noise_rng is None or not np.any(self.observation_noise):
+            return self._observe(state)
+        return self._observe(state + self.observation_noise * self._noise_rng.normal(
+            size=state.shape))
 
     # ----------------------------------------------------------------- cost and penalty
     def _stage_cost_bound(self) -> float:
@@ -251,6 +352,10 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
             options: ``{"state": array (n,)}`` starts from that state (physical units).
         """
         super().reset(seed=seed)
+        if seed is not None:
+            self._noise_rng = np.random.default_rng([seed, NOISE_STREAM])
+        elif self._noise_rng is None:
+            self._noise_rng = np.random.default_rng()
         self._draw_episode_models()
         options = options or {}
         unknown = set(options) - {"state"}
@@ -272,7 +377,7 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
         info = self._info(obs, violation=None, reason=None, clipped=False)
         if self.render_mode == "human":
             self.render()
-        return obs.astype(np.float32), info
+        return self._observed(self._state).astype(np.float32), info
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         """Advance one control period with the action held constant (zero-order hold).
@@ -301,6 +406,7 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
         reward = -self.DT * float(self.nominal_model.task.stage_cost(obs_before, u))
         self._state = np.asarray(self._plant.step(self._state, u), dtype=float)
         self._steps += 1
+        self._apply_changes(self._steps * self.DT)
 
         reason: str | None = None
         violation: str | None = None
@@ -328,7 +434,8 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
                           reason=reason, clipped=clipped)
         if self.render_mode == "human":
             self.render()
-        return obs.astype(np.float32), float(reward), bool(terminated), False, info
+        return (self._observed(self._state).astype(np.float32), float(reward), bool(terminated),
+                False, info)
 
     def _info(self, obs: np.ndarray, violation: str | None, reason: str | None, clipped: bool
               ) -> dict[str, Any]:

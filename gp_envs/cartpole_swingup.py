@@ -22,6 +22,10 @@ actions outside are clipped.
 |----------|-------|-------------------------------|---------------------------|-------|
 | "gp"     | 1     | 0.5, 0.5, 0.6, 0.01, 0.01     | 0.5, 0.5, 0.6, 0, 0       | 20 N  |
 | "online" | 2     | 1.0, 0.5, 0.5, 0.3, 0.3       | 0.9, 0.45, 0.45, 0, 0     | 35 N  |
+| "online-wear" | - | as "online"; b1, b2 double at t = 3 s | as "online"        | 35 N  |
+
+"online-wear" is time-varying (:class:`~gp_envs.base.ParamChange`): the truth changes during the
+episode, after the swing-up, while the pole is balanced; the nominal model stays the same.
 
 With the dissipative damping of the "online" table no swing-up exists within 20 N; the bound of
 35 N is chosen so that the true system can swing up within the episode; ``benchmarks/
@@ -45,7 +49,7 @@ from typing import Any, ClassVar
 import numpy as np
 from gymnasium import spaces
 
-from gp_envs.base import GPEnv, Scenario
+from gp_envs.base import GPEnv, ParamChange, Scenario
 from gp_envs.model import ControlModel, Task, diag
 from gp_envs.physics import cartpole
 from gp_envs.systems import PlanningDefaults, Policy, System, register_system
@@ -68,6 +72,12 @@ class CartPoleSwingUpEnv(GPEnv):
             true={"mc": 1.0, "mp": 0.5, "l": 0.5, "b1": 0.3, "b2": 0.3, "g": G},
             nominal={"mc": 0.9, "mp": 0.45, "l": 0.45, "b1": 0.0, "b2": 0.0, "g": G},
             u_lb=(-35.0,), u_ub=(35.0,)),
+        "online-wear": Scenario(
+            description="table 2's setting with the ground and pivot damping doubling at 3 s",
+            true={"mc": 1.0, "mp": 0.5, "l": 0.5, "b1": 0.3, "b2": 0.3, "g": G},
+            nominal={"mc": 0.9, "mp": 0.45, "l": 0.45, "b1": 0.0, "b2": 0.0, "g": G},
+            u_lb=(-35.0,), u_ub=(35.0,),
+            changes=(ParamChange(3.0, {"b1": 2.0, "b2": 2.0}),)),
     }
     DEFAULT_SCENARIO = "online"
     DT = 0.05

@@ -17,6 +17,10 @@ stays positive (errata note 2; about 16% of the draws fall below 0, an actuator 
 stronger than its command): ``env.unwrapped.nominal_model`` changes at every reset, so build
 or refresh a controller after ``reset``.
 
+## Scenario "paper-wear" (time-varying)
+As "paper", and the true losses grow during the episode (:class:`~gp_envs.base.ParamChange`):
+``b1 = b2 = 0.45`` from 5 s, ``0.6`` from 10 s (actuator wear; the nominal draw is as "paper").
+
 ## Task, reward, episode
 From ``(5, 5)``, heading at the goal, to ``(2, -2)``; the obstacle of radius 2 is centred at
 ``(3.5, 1.5)``, the midpoint of the straight path, and the vehicle's body radius is 0.2 m.
@@ -35,7 +39,7 @@ from typing import Any, ClassVar
 import numpy as np
 from gymnasium import spaces
 
-from gp_envs.base import GPEnv, Scenario
+from gp_envs.base import GPEnv, ParamChange, Scenario
 from gp_envs.model import ControlModel, Obstacle, Task, diag
 from gp_envs.physics import dubins
 from gp_envs.systems import PlanningDefaults, Policy, System, register_system
@@ -56,6 +60,13 @@ class DubinsObstacleEnv(GPEnv):
             true={"b1": 0.3, "b2": 0.3}, nominal={"b1": 0.3, "b2": 0.3},
             u_lb=(0.0, -2.0), u_ub=(2.0, 2.0),
             nominal_spread={"b1": 0.3, "b2": 0.3}, nominal_max=0.9),
+        "paper-wear": Scenario(
+            description="paper's setting; the actuator losses grow to 1.5x at 5 s, 2x at 10 s",
+            true={"b1": 0.3, "b2": 0.3}, nominal={"b1": 0.3, "b2": 0.3},
+            u_lb=(0.0, -2.0), u_ub=(2.0, 2.0),
+            nominal_spread={"b1": 0.3, "b2": 0.3}, nominal_max=0.9,
+            changes=(ParamChange(5.0, {"b1": 1.5, "b2": 1.5}),
+                     ParamChange(10.0, {"b1": 2.0, "b2": 2.0}))),
     }
     DEFAULT_SCENARIO = "paper"
     DT = 0.1

@@ -18,6 +18,10 @@ Rotor thrusts ``F1..F4`` in newtons, each in ``[0, 5]`` (hover needs ``m g / 4``
 |----------|-------|----------------------------------------|---------------------------------|
 | "gp"     | 1     | 1, 8.1e-3, 8.1e-3, 14.2e-3, 0.24       | 0.9, 0.24                       |
 | "online" | 2     | 1, 8.1e-3, 8.1e-3, 14.2e-3, 0.24       | 0.99, 0.2376                    |
+| "online-payload" | - | as "online"; m = 1.2 from t = 3 s    | 0.99, 0.2376                    |
+
+"online-payload" is time-varying (:class:`~gp_envs.base.ParamChange`): a point payload at the
+centre of mass (inertias unchanged) is picked up at 3 s, while the vehicle holds the goal.
 
 ## Task, reward, episode
 Fly from ``[-1, 1, 0.5]`` to ``[0.5, -1, 1.5]`` (m, NED) and hold there, level. Stage cost (per
@@ -36,7 +40,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from gp_envs.base import GPEnv, Scenario
+from gp_envs.base import GPEnv, ParamChange, Scenario
 from gp_envs.model import ControlModel, Task, diag
 from gp_envs.physics import quadrotor
 from gp_envs.systems import PlanningDefaults, Policy, System, register_system
@@ -62,6 +66,12 @@ class QuadrotorEnv(GPEnv):
             true={"m": 1.0, **_INERTIA, "L": 0.24, "g": G},
             nominal={"m": 0.99, **_INERTIA, "L": 0.2376, "g": G},
             u_lb=(0.0,) * 4, u_ub=(5.0,) * 4),
+        "online-payload": Scenario(
+            description="table 2's setting; picks up a payload at 3 s (+20% mass)",
+            true={"m": 1.0, **_INERTIA, "L": 0.24, "g": G},
+            nominal={"m": 0.99, **_INERTIA, "L": 0.2376, "g": G},
+            u_lb=(0.0,) * 4, u_ub=(5.0,) * 4,
+            changes=(ParamChange(3.0, {"m": 1.2}),)),
     }
     DEFAULT_SCENARIO = "online"
     DT = 0.05

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import copy
+from typing import ClassVar
+
 import casadi as ca
 import gymnasium as gym
 import numpy as np
@@ -529,3 +532,134 @@ def test_success_requires_holding_the_goal():
         successes.append(info["success"])
     hold = round(model.task.hold_time / model.dt)
     assert not any(successes[: hold - 1]) and all(successes[hold:])
+
+
+# ------------------------------------------------------------------ time-varying truth, noise
+TIME_VARYING = [("gp_envs/CartPoleSwingUp-v0", "online-wear"),
+                ("gp_envs/Quadrotor-v0", "online-payload"),
+                ("gp_envs/DubinsObstacle-v0", "paper-wear")]
+
+
+def _hold_action(env):
+    """A constant action that keeps each system inside its box for a while (hover thrust for
+    the quadrotor, slow straight driving away from the obstacle for the Dubins vehicle)."""
+    model = env.unwrapped.nominal_model
+    return np.asarray(model.task.u_ref if model.name != "dubins" else [0.2, 0.0], np.float32)
+
+
+@pytest.mark.parametrize(("env_id", "scenario"), TIME_VARYING)
+def test_time_varying_truth_changes_at_its_time_relative_to_the_episode_draw(env_id, scenario):
+    """The plant is the episode's (randomized) truth until the change time and the truth times
+    the change's factors from the period starting at that time: checked against a piecewise
+    simulation with the oracle's models, step by step."""
+    env = gym.make(env_id, scenario=scenario, randomize=0.1)
+    env.reset(seed=3, options={"state": env.unwrapped.nominal_model.task.goal})
+    base = env.unwrapped
+    initial = dict(gp_envs.oracle_model(env).params)
+    changes = base.SCENARIOS[scenario].changes
+    x, u = base._state.copy(), _hold_action(env)
+    for k in range(round(changes[-1].time / base.DT) + 2):
+        t = k * base.DT
+        expected = dict(initial)
+        for change in changes:
+            if change.time <= t + 1e-9:
+                expected.update({n: initial[n] * f for n, f in change.factors.items()})
+        truth = gp_envs.oracle_model(env)
+        assert dict(truth.params) == pytest.approx(expected), t
+        x = truth.step(x, u.astype(float))
+        env.step(u)
+        np.testing.assert_allclose(base._state, x, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize(("env_id", "scenario"), TIME_VARYING)
+def test_time_varying_truth_is_hidden(env_id, scenario):
+    env = gym.make(env_id, scenario=scenario, randomize=0.1)  # no round values to collide
+    obs, info = env.reset(seed=0)
+    values = list(_public_values(obs)) + list(_public_values(info))
+    for _ in range(round(env.unwrapped.SCENARIOS[scenario].changes[-1].time
+                         / env.unwrapped.DT) + 3):
+        obs, r, term, trunc, info = env.step(_hold_action(env))
+        values += list(_public_values(obs)) + list(_public_values(info)) + [r]
+        if term or trunc:
+            break
+    values += list(_public_values(env.unwrapped.nominal_model))
+    changed = {k: v for k, v in gp_envs.oracle_model(env).params.items()
+               if k != "g"}
+    assert changed  # the truth did change
+    for name, v in changed.items():
+        assert not np.any(np.isclose(values, v, rtol=1e-9, atol=0)), name
+
+
+def test_a_change_outside_the_valid_range_fails_at_construction():
+    from gp_envs.base import ParamChange, Scenario
+    from gp_envs.dubins_obstacle import DubinsObstacleEnv
+
+    paper = DubinsObstacleEnv.SCENARIOS["paper"]
+
+    def env_with(*changes):
+        class Custom(DubinsObstacleEnv):
+            SCENARIOS: ClassVar[dict[str, Scenario]] = {"x": Scenario(
+                "custom", paper.true, paper.nominal, paper.u_lb, paper.u_ub,
+                changes=changes)}
+            DEFAULT_SCENARIO = "x"
+        return Custom()
+
+    with pytest.raises(ValueError, match=r"after the scenario's change at 5.0 s.*b1"):
+        env_with(ParamChange(5.0, {"b1": 4.0}))  # b1 = 1.2: the vehicle would drive backwards
+    with pytest.raises(ValueError, match="time order within"):
+        env_with(ParamChange(20.0, {"b1": 1.1}))
+    with pytest.raises(ValueError, match="time order within"):
+        env_with(ParamChange(6.0, {"b1": 1.1}), ParamChange(5.0, {"b1": 1.2}))
+    with pytest.raises(ValueError, match="unknown parameter"):
+        env_with(ParamChange(5.0, {"mass": 1.1}))
+    # paper-wear doubles b = 0.3; with randomize 0.7 a draw of 0.51 would double to 1.02
+    with pytest.raises(ValueError, match=r"randomize=0\.7"):
+        gym.make("gp_envs/DubinsObstacle-v0", scenario="paper-wear", randomize=0.7)
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_observation_noise_is_seeded_zero_mean_with_the_stated_spread(env_id):
+    sd = 0.01
+    noisy = gym.make(env_id, observation_noise=sd)
+    exact = gym.make(env_id)
+    obs_n, _ = noisy.reset(seed=5)
+    exact.reset(seed=5)
+    # the noise has its own stream: the initial (true) state of a seed is the same
+    np.testing.assert_array_equal(noisy.unwrapped._state, exact.unwrapped._state)
+    errors, rewards_n, rewards_e = [], [], []
+    u = _hold_action(exact)
+    for _ in range(40):
+        truth = exact.unwrapped._observe(exact.unwrapped._state)
+        e = obs_n.astype(float) - truth
+        angles = list(exact.unwrapped.ANGLE_INDICES)
+        e[angles] = np.arctan2(np.sin(e[angles]), np.cos(e[angles]))
+        errors.append(e)
+        obs_n, r_n, _, _, info_n = noisy.step(u)
+        _, r_e, term_e, _, info_e = exact.step(u)
+        rewards_n.append(r_n)
+        rewards_e.append(r_e)
+        assert info_n == info_e  # info and reward are about the true state
+        if term_e:
+            break
+    assert rewards_n == rewards_e
+    errors = np.array(errors)
+    n = errors.size
+    assert abs(errors.mean()) < 4 * sd / np.sqrt(n)
+    assert errors.std() == pytest.approx(sd, rel=6 / np.sqrt(n) + 0.05)
+    again = gym.make(env_id, observation_noise=sd)
+    assert np.array_equal(again.reset(seed=5)[0], noisy.reset(seed=5)[0])
+    assert not np.array_equal(again.reset(seed=6)[0], noisy.reset(seed=5)[0])
+
+
+@pytest.mark.parametrize("noise", [-0.1, np.nan, np.inf, "0.1", [0.1, 0.2, 0.3, 0.4, 0.5]])
+def test_invalid_observation_noise_is_refused(noise):
+    with pytest.raises(ValueError, match="observation_noise"):
+        gym.make("gp_envs/CartPoleSwingUp-v0", observation_noise=noise)
+
+
+def test_noisy_env_copies_continue_the_same_noise_stream():
+    env = gym.make("gp_envs/Quadrotor-v0", observation_noise=[0.01] * 12)
+    env.reset(seed=1)
+    twin = copy.deepcopy(env)
+    u = _hold_action(env)
+    np.testing.assert_array_equal(env.step(u)[0], twin.step(u)[0])
