@@ -151,13 +151,18 @@ def _control_period_line(ax: Any, dt: float) -> Any:
                label=f"control period ({1e3 * dt:g} ms)")
 
 
-def _scheme_note(controllers: Iterable[str]) -> str:
-    """``" (dashed: episodic; dash-dot: real-time iteration)"``, naming only the line styles
-    of schemes that ``controllers`` use (empty if all are solid)."""
+def _scheme_notes(controllers: Iterable[str]) -> list[str]:
+    """``["dashed: episodic", "dash-dot: real-time iteration"]``, naming only the line styles
+    of the schemes that ``controllers`` use (empty if all are solid)."""
     used = {_style(c).linestyle for c in controllers}
-    notes = [text for ls, text in ((EPISODIC, "dashed: episodic"),
-                                   (RTI, "dash-dot: real-time iteration")) if ls in used]
-    return f" ({'; '.join(notes)})" if notes else ""
+    return [text for ls, text in ((EPISODIC, "dashed: episodic"),
+                                  (RTI, "dash-dot: real-time iteration")) if ls in used]
+
+
+def _notes(*parts: str | list[str]) -> str:
+    """``" (a; b)"`` of the non-empty notes, or empty."""
+    flat = [p for part in parts for p in ([part] if isinstance(part, str) else part) if p]
+    return f" ({'; '.join(flat)})" if flat else ""
 
 
 def _max_finite(values: Iterable[float]) -> float:
@@ -487,12 +492,18 @@ def trajectories_figure(env: str, scenario: str, chosen: dict[str, Trial]) -> An
             ax.axhline(goal[i], color="0.45", lw=0.8, ls=":", zorder=1)
         if i >= n - ncols:
             ax.set_xlabel("time (s)")
-    for ax in list(axes.flat)[n:]:
+    spare = list(axes.flat)[n:]
+    for ax in spare:
         ax.axis("off")
-    axes.flat[0].legend(fontsize=7)
+    if spare:  # the legend in an empty panel, where it hides no line
+        handles, labels = axes.flat[0].get_legend_handles_labels()
+        spare[0].legend(handles, labels, loc="center", fontsize=8,
+                        ncols=1 if len(labels) <= 8 else 2)
+    else:
+        axes.flat[0].legend(fontsize=7)
     seed_text = f"seed {seeds[0]}" if len(seeds) == 1 else f"lowest seed each ({seeds})"
     fig.suptitle(f"{_env_title(env, scenario)}: states and controls, {seed_text}"
-                 f"{_scheme_note(chosen)}", fontsize=10)
+                 f"{_notes(_scheme_notes(chosen))}", fontsize=10)
     fig.tight_layout()
     return fig
 
@@ -562,8 +573,10 @@ def paths_figure(env: str, scenario: str, groups: dict[str, list[Trial]]) -> Any
         ax.set_title(f"{_label(c)}: {len(ts)} episodes\n{n_goal} reached the goal, "
                      f"{n_viol} touched an obstacle", fontsize=9, color=st.color)
     axes.flat[0].set_ylabel(axis_label(system, model.state_names[1]))
-    fig.suptitle(f"{_env_title(env, scenario)}: paths (dot: start, star: goal, red x: obstacle "
-                 f"contact; dashed circle: obstacle + body radius){_scheme_note(groups)}",
+    fig.suptitle(f"{_env_title(env, scenario)}: paths"
+                 + _notes("dot: start, star: goal, red x: obstacle contact",
+                          "dashed circle: obstacle + body radius",
+                          [n.replace("dashed", "dashed path") for n in _scheme_notes(groups)]),
                  fontsize=10)
     fig.tight_layout()
     return fig
@@ -620,10 +633,14 @@ def step_times_figure(groups: dict[str, dict[str, list[np.ndarray]]], scenarios:
         ax.set_ylabel("act() time per step (ms)")
         ax.set_title(ENVS[env].env_id, fontsize=9)
         ax.grid(alpha=0.3, axis="y")
-        ax.legend(handles=[period], fontsize=7, loc="upper right")
+        ax.legend(handles=[period], fontsize=7, loc="best")
     controllers = {c for per in groups.values() for c in per}
-    fig.suptitle("Per-step compute (whiskers 5-95%; above the control period: not real-time)"
-                 + _scheme_note(controllers), fontsize=10)
+    fig.suptitle("Per-step compute" + _notes("whiskers 5-95%",
+                                             "above the control period: not real-time",
+                                             [n.replace("dashed", "dashed box").replace(
+                                                 "dash-dot", "dash-dot box")
+                                              for n in _scheme_notes(controllers)]),
+                 fontsize=10)
     fig.tight_layout()
     return fig
 

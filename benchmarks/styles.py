@@ -75,12 +75,12 @@ _PPO = "#BCBD22"  # olive
 
 STYLES: dict[str, Style] = {
     # nominal: thick and underneath; oracle: thin and on top (the two often coincide)
-    "nominal-mpc": Style(_NOMINAL, RECEDING, "o", linewidth=2.6, zorder=2.0),
-    "nominal-episodic": Style(_NOMINAL, EPISODIC, "s", linewidth=2.6, zorder=2.0),
-    "nominal-mpc-rti": Style(_NOMINAL, RTI, "p", linewidth=2.6, zorder=2.0),
-    "oracle-mpc": Style(_ORACLE, RECEDING, "x", linewidth=0.9, zorder=5.0),
-    "oracle-episodic": Style(_ORACLE, EPISODIC, "+", linewidth=0.9, zorder=5.0),
-    "oracle-mpc-rti": Style(_ORACLE, RTI, "1", linewidth=0.9, zorder=5.0),
+    "nominal-mpc": Style(_NOMINAL, RECEDING, "o", linewidth=2.2, zorder=2.0),
+    "nominal-episodic": Style(_NOMINAL, EPISODIC, "s", linewidth=2.2, zorder=2.0),
+    "nominal-mpc-rti": Style(_NOMINAL, RTI, "p", linewidth=2.2, zorder=2.0),
+    "oracle-mpc": Style(_ORACLE, RECEDING, "x", linewidth=1.0, zorder=5.0),
+    "oracle-episodic": Style(_ORACLE, EPISODIC, "+", linewidth=1.0, zorder=5.0),
+    "oracle-mpc-rti": Style(_ORACLE, RTI, "1", linewidth=1.0, zorder=5.0),
     "gp-mpc": Style(_GP, RECEDING, "D"),
     "gp-episodic": Style(_GP, EPISODIC, "d"),
     "ssgp-mpc": Style(_SSGP, RECEDING, "^"),
@@ -88,11 +88,11 @@ STYLES: dict[str, Style] = {
     "ssgp-mpc-nominal-hessian": Style(_SSGP_NOMINAL_HESSIAN, RECEDING, ">"),
     "ssgp-mpc-model-inputs": Style(_SSGP_MODEL_INPUTS, RECEDING, "P"),
     "ssgp-mpc-linearized": Style(_SSGP_LINEARIZED, RECEDING, "v"),
-    "ssgp-mpc-linearized-model-inputs": Style(_SSGP_LINEARIZED_MODEL_INPUTS, RECEDING, "X"),
+    "ssgp-mpc-linearized-model-inputs": Style(_SSGP_LINEARIZED_MODEL_INPUTS, RECEDING, "h"),
     # the SSGP RTI plans with the residual linearized per node, as ssgp-mpc-linearized does
     "ssgp-mpc-rti": Style(_SSGP_LINEARIZED, RTI, "8"),
     "sac": Style(_SAC, RECEDING, "*"),
-    "ppo": Style(_PPO, RECEDING, "h"),
+    "ppo": Style(_PPO, RECEDING, "X"),
 }
 """The style of every controller recipe, by recipe name (see the module docstring)."""
 
