@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import csv
 import datetime as _dt
+import functools
 import importlib.metadata
 import math
 import os
@@ -32,11 +33,12 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
-from matplotlib.ticker import NullFormatter
+from matplotlib.ticker import FixedFormatter, FixedLocator, NullFormatter, NullLocator
 
 from benchmarks.controllers import CONTROLLERS, ENVS, MODELS_DIR
 from benchmarks.presets import MPC_BASES, Experiment, Preset
 from benchmarks.runner import load_arrays, load_record, trial_path
+from benchmarks.styles import EPISODIC, RTI, Style, axis_label, style
 from benchmarks.trial import STATUS_OK, STATUS_UNAVAILABLE, TrialSpec
 
 METRIC_COLUMNS = (
@@ -110,14 +112,64 @@ def _label(controller: str) -> str:
     return recipe.label if recipe else controller
 
 
-_BASE_COLORS = {"nominal": "C0", "gp": "C1", "ssgp": "C2", "oracle": "C3", "sac": "C4",
-                "ppo": "C5"}
+def _style(controller: str) -> Style:
+    """The controller's fixed style (:data:`benchmarks.styles.STYLES`; raises if it has none)."""
+    return style(controller)
 
 
-def _color(controller: str) -> str:
-    """One color per model variant (receding and episodic share it)."""
-    recipe = CONTROLLERS.get(controller)
-    return _BASE_COLORS.get(recipe.base if recipe else controller, "C7")
+@functools.cache
+def _env_model(env: str, scenario: str) -> Any:
+    """The nominal :class:`gp_envs.ControlModel` of benchmark env ``env`` in ``scenario``
+    (its ``dt``, names and task; the Dubins nominal parameters redrawn at each reset do not
+    matter here)."""
+    import gymnasium as gym
+
+    made = gym.make(ENVS[env].env_id, scenario=scenario)
+    try:
+        return made.unwrapped.nominal_model
+    finally:
+        made.close()
+
+
+@functools.cache
+def _system(env: str) -> str:
+    """The physics module's short name of benchmark env ``env`` (the key of
+    :data:`benchmarks.styles.UNITS`)."""
+    import gymnasium as gym
+
+    made = gym.make(ENVS[env].env_id)
+    try:
+        return str(made.unwrapped.physics.__name__).rsplit(".", 1)[-1]
+    finally:
+        made.close()
+
+
+def _control_period_line(ax: Any, dt: float) -> Any:
+    """A horizontal line (returned) at the control period ``dt`` (s) on an axis of step times
+    in ms: a step above it is not real-time feasible."""
+    return ax.axhline(1e3 * dt, color="tab:red", ls=":", lw=1.4, zorder=6,
+               label=f"control period ({1e3 * dt:g} ms)")
+
+
+def _scheme_notes(controllers: Iterable[str]) -> list[str]:
+    """``["dashed: episodic", "dash-dot: real-time iteration"]``, naming only the line styles
+    of the schemes that ``controllers`` use (empty if all are solid)."""
+    used = {_style(c).linestyle for c in controllers}
+    return [text for ls, text in ((EPISODIC, "dashed: episodic"),
+                                  (RTI, "dash-dot: real-time iteration")) if ls in used]
+
+
+def _notes(*parts: str | list[str]) -> str:
+    """``" (a; b)"`` of the non-empty notes, or empty."""
+    flat = [p for part in parts for p in ([part] if isinstance(part, str) else part) if p]
+    return f" ({'; '.join(flat)})" if flat else ""
+
+
+def _max_finite(values: Iterable[float]) -> float:
+    """Largest finite value (nan if there is none, e.g. a metric undefined for the env)."""
+    arr = np.asarray([v for v in values if v is not None], float)
+    arr = arr[np.isfinite(arr)]
+    return float(arr.max()) if arr.size else math.nan
 
 
 def _fmt(value: Any, digits: int = 2) -> str:
@@ -283,8 +335,7 @@ def summarize(experiment: str, trials: Sequence[Trial]) -> list[dict[str, Any]]:
             "time_to_success_mean_s": _mean([x["time_to_success_s"] for x in m]),
             "final_distance_mean": _mean([x["final_distance"] for x in m]),
             "final_position_error_mean": _mean([x["final_position_error"] for x in m]),
-            "final_position_error_max": (max(x["final_position_error"] for x in m)
-                                         if m and env != "cartpole" else math.nan),
+            "final_position_error_max": _max_finite(x["final_position_error"] for x in m),
             "violations_total": int(sum(x["violations"] for x in m)),
             "episodes_with_violation": int(sum(x["violations"] > 0 for x in m)),
             "data_steps_mean": _mean([x["data_steps"] for x in m]),
@@ -411,6 +462,52 @@ def _first_ok(trials: Sequence[Trial]) -> Trial | None:
     return ok[0] if ok else None
 
 
+def trajectories_figure(env: str, scenario: str, chosen: dict[str, Trial]) -> Any:
+    """States and controls against time, one line per controller (one trial each), each panel
+    labelled with its unit; the goal of every weighted state dotted."""
+    model = _env_model(env, scenario)
+    system = _system(env)
+    names = [*model.state_names, *model.control_names]
+    n, ncols = len(names), 4 if len(names) > 9 else 3
+    nrows = math.ceil(n / ncols)
+    fig, axes = plt.subplots(nrows, ncols, figsize=(4.2 * ncols, 2.6 * nrows), squeeze=False)
+    seeds = sorted({t.spec.seed for t in chosen.values()})
+    for c, t in chosen.items():
+        obs, act = t.arrays["obs"], t.arrays["action"]
+        t_obs = np.arange(len(obs)) * model.dt
+        st = _style(c)
+        for i in range(n):
+            ax = axes.flat[i]
+            if i < model.n_states:
+                ax.plot(t_obs, obs[:, i], label=_label(c), **st.line(len(t_obs)))
+            else:
+                ax.step(t_obs[:-1], act[:, i - model.n_states], where="post", label=_label(c),
+                        **st.line(len(t_obs) - 1))
+    goal = model.task.goal
+    for i, name in enumerate(names):
+        ax = axes.flat[i]
+        ax.set_ylabel(axis_label(system, name), fontsize=9)
+        ax.grid(alpha=0.3)
+        if i < model.n_states and model.task.Q[i, i] > 0:
+            ax.axhline(goal[i], color="0.45", lw=0.8, ls=":", zorder=1)
+        if i >= n - ncols:
+            ax.set_xlabel("time (s)")
+    spare = list(axes.flat)[n:]
+    for ax in spare:
+        ax.axis("off")
+    if spare:  # the legend in an empty panel, where it hides no line
+        handles, labels = axes.flat[0].get_legend_handles_labels()
+        spare[0].legend(handles, labels, loc="center", fontsize=8,
+                        ncols=1 if len(labels) <= 8 else 2)
+    else:
+        axes.flat[0].legend(fontsize=7)
+    seed_text = f"seed {seeds[0]}" if len(seeds) == 1 else f"lowest seed each ({seeds})"
+    fig.suptitle(f"{_env_title(env, scenario)}: states and controls, {seed_text}"
+                 f"{_notes(_scheme_notes(chosen))}", fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
 def section_trajectories(ctx: Context, exp: Experiment) -> list[str]:
     """States and controls vs time, one line per controller, lowest seed; one figure per env."""
     by_env: dict[tuple[str, str], dict[str, list[Trial]]] = defaultdict(lambda: defaultdict(list))
@@ -423,111 +520,149 @@ def section_trajectories(ctx: Context, exp: Experiment) -> list[str]:
         chosen = {c: t for c, t in chosen.items() if t is not None}
         if not chosen:
             continue
-        import gymnasium as gym
-
-        model = gym.make(ENVS[env].env_id, scenario=scenario).unwrapped.nominal_model
-        names = [*model.state_names, *model.control_names]
-        n, ncols = len(names), 4 if len(names) > 9 else 3
-        nrows = math.ceil(n / ncols)
-        fig, axes = plt.subplots(nrows, ncols, figsize=(4.2 * ncols, 2.6 * nrows), squeeze=False)
-        seed = min(t.spec.seed for t in chosen.values())
-        for c, t in chosen.items():
-            a = t.arrays
-            obs, act = a["obs"], a["action"]
-            t_obs = np.arange(len(obs)) * model.dt
-            recipe = CONTROLLERS[c]
-            style = {"ls": "--" if recipe.family == "mpc" and recipe.mode == "episodic" else "-",
-                     "color": _color(c), "label": _label(c)}
-            for i in range(n):
-                ax = axes.flat[i]
-                if i < model.n_states:
-                    ax.plot(t_obs, obs[:, i], lw=1.2, **style)
-                else:
-                    ax.step(t_obs[:-1], act[:, i - model.n_states], where="post", lw=1.0,
-                            **style)
-        goal = model.task.goal
-        for i, name in enumerate(names):
-            ax = axes.flat[i]
-            ax.set_title(name, fontsize=9)
-            ax.grid(alpha=0.3)
-            if i < model.n_states and model.task.Q[i, i] > 0:
-                ax.axhline(goal[i], color="k", lw=0.6, ls=":")
-            if i >= n - ncols:
-                ax.set_xlabel("time (s)")
-        for ax in list(axes.flat)[n:]:
-            ax.axis("off")
-        axes.flat[0].legend(fontsize=7)
-        fig.suptitle(f"{_env_title(env, scenario)}: states and controls, seed {seed} "
-                     "(dashed: episodic)", fontsize=10)
-        fig.tight_layout()
+        fig = trajectories_figure(env, scenario, chosen)
         name = _save(fig, ctx.out_dir, f"{exp.name}_trajectories_{env}_{scenario}.png")
         lines += ["", f"![{env} {scenario} trajectories]({name})"]
     return lines
 
 
-def section_paths(ctx: Context, exp: Experiment) -> list[str]:
-    """Dubins x-y paths of every episode with the obstacle and goal, one panel per controller."""
-    groups: dict[str, list[Trial]] = defaultdict(list)
-    for t in ctx.of(exp):
-        if t.spec.kind == "episode" and t.spec.env == "dubins" and t.ok:
-            groups[t.spec.controller].append(t)
-    if not groups:
-        return []
-    from gp_envs.dubins_obstacle import BODY_RADIUS, GOAL, OBSTACLE, START
-
-    fig, axes = plt.subplots(1, len(groups), figsize=(4.3 * len(groups), 4.3), squeeze=False)
+def paths_figure(env: str, scenario: str, groups: dict[str, list[Trial]]) -> Any:
+    """Paths in the plane of the first two states of every episode, one panel per controller,
+    with the task's obstacles (and obstacle + body radius, dashed), each episode's start, the
+    goal, and the points in contact with an obstacle."""
+    model = _env_model(env, scenario)
+    task, system = model.task, _system(env)
+    goal = np.asarray(task.goal, float)[:2]
+    points = [goal[None, :]]
+    for ob in task.obstacles:
+        reach = ob.radius + task.body_radius
+        points.append(np.asarray(ob.center, float) + np.array([[-reach, -reach], [reach, reach]]))
+    points += [t.arrays["obs"][:, :2] for ts in groups.values() for t in ts]
+    allp = np.concatenate(points)
+    finite = allp[np.all(np.isfinite(allp), axis=1)]
+    low, high = finite.min(axis=0), finite.max(axis=0)
+    pad = 0.08 * float(np.max(high - low)) + 0.1
+    fig, axes = plt.subplots(1, len(groups), figsize=(4.3 * len(groups), 4.5), squeeze=False,
+                             sharex=True, sharey=True)
     for ax, (c, ts) in zip(axes.flat, groups.items(), strict=True):
-        ax.add_patch(plt.Circle(OBSTACLE.center, OBSTACLE.radius, color="0.6", alpha=0.7))
-        ax.add_patch(plt.Circle(OBSTACLE.center, OBSTACLE.radius + BODY_RADIUS, fill=False,
-                                ls="--", color="0.4", lw=0.8))
+        for ob in task.obstacles:
+            ax.add_patch(plt.Circle(ob.center, ob.radius, color="0.75", zorder=1))
+            ax.add_patch(plt.Circle(ob.center, ob.radius + task.body_radius, fill=False,
+                                    ls="--", color="0.4", lw=0.8, zorder=1))
+        st = _style(c)
         n_viol = n_goal = 0
         for t in ts:
-            obs = t.arrays["obs"]
-            bad = t.metrics["violations"] > 0
-            n_viol += bad
+            xy = t.arrays["obs"][:, :2]
+            n_viol += t.metrics["violations"] > 0
             n_goal += bool(t.metrics["success"])
-            ax.plot(obs[:, 0], obs[:, 1], color="tab:red" if bad else "tab:blue", lw=0.7,
-                    alpha=0.6)
-        ax.plot(*START, "ko", ms=4)
-        ax.plot(*GOAL, "g*", ms=12)
+            ax.plot(xy[:, 0], xy[:, 1], color=st.color, ls=st.linestyle, lw=1.0, alpha=0.75,
+                    zorder=3)
+            ax.plot(*xy[0], "o", color="0.2", ms=4, zorder=4)
+            contact = np.zeros(len(xy), bool)
+            for ob in task.obstacles:
+                contact |= ob.clearance(xy, task.body_radius) < 0
+            if contact.any():
+                ax.plot(xy[contact, 0], xy[contact, 1], "x", color="tab:red", ms=7, mew=1.8,
+                        zorder=5)
+        ax.plot(*goal, "*", color="tab:green", ms=13, zorder=4)
         ax.set_aspect("equal")
-        ax.set_xlim(-0.5, 7)
-        ax.set_ylim(-3.5, 6.5)
+        ax.set_xlim(low[0] - pad, high[0] + pad)
+        ax.set_ylim(low[1] - pad, high[1] + pad)
+        ax.set_xlabel(axis_label(system, model.state_names[0]))
         ax.grid(alpha=0.3)
         ax.set_title(f"{_label(c)}: {len(ts)} episodes\n{n_goal} reached the goal, "
-                     f"{n_viol} touched the obstacle", fontsize=9)
-    fig.suptitle("Dubins paths (red: obstacle contact; dashed: obstacle + body radius)",
+                     f"{n_viol} touched an obstacle", fontsize=9, color=st.color)
+    axes.flat[0].set_ylabel(axis_label(system, model.state_names[1]))
+    fig.suptitle(f"{_env_title(env, scenario)}: paths"
+                 + _notes("dot: start, star: goal, red x: obstacle contact",
+                          "dashed circle: obstacle + body radius",
+                          [n.replace("dashed", "dashed path") for n in _scheme_notes(groups)]),
                  fontsize=10)
     fig.tight_layout()
-    name = _save(fig, ctx.out_dir, f"{exp.name}_dubins_paths.png")
-    return ["", f"![Dubins paths]({name})"]
+    return fig
 
 
-def section_step_times(ctx: Context, exp: Experiment) -> list[str]:
-    """Box plot of the per-step ``act`` time of each controller, one panel per env."""
-    groups: dict[str, dict[str, list[np.ndarray]]] = defaultdict(lambda: defaultdict(list))
+def section_paths(ctx: Context, exp: Experiment) -> list[str]:
+    """x-y paths of every episode of each env whose task has obstacles, with the obstacles and
+    the goal, one panel per controller; one figure per env and scenario."""
+    by_env: dict[tuple[str, str], dict[str, list[Trial]]] = defaultdict(lambda: defaultdict(list))
     for t in ctx.of(exp):
-        if t.spec.kind == "episode" and t.ok:
-            groups[t.spec.env][t.spec.controller].append(t.arrays["act_time"])
-    if not groups:
-        return []
-    fig, axes = plt.subplots(1, len(groups), figsize=(5.2 * len(groups), 4.2), squeeze=False)
-    rows = []
+        if t.spec.kind == "episode" and t.ok and _env_model(t.spec.env,
+                                                            t.spec.scenario).task.obstacles:
+            by_env[(t.spec.env, t.spec.scenario)][t.spec.controller].append(t)
+    lines: list[str] = []
+    for (env, scenario), groups in by_env.items():
+        several = sum(e == env for e, _ in by_env) > 1
+        fig = paths_figure(env, scenario, groups)
+        name = _save(fig, ctx.out_dir, f"{exp.name}_{env}_{scenario}_paths.png" if several
+                     else f"{exp.name}_{env}_paths.png")
+        lines += ["", f"![{env} {scenario} paths]({name})"]
+    return lines
+
+
+def _style_boxes(parts: dict[str, Any], controllers: Sequence[str]) -> None:
+    """Colour each box of an ``Axes.boxplot(..., patch_artist=True)`` as its controller."""
+    for i, c in enumerate(controllers):
+        st = _style(c)
+        box = parts["boxes"][i]
+        box.set(facecolor=matplotlib.colors.to_rgba(st.color, 0.25), edgecolor=st.color,
+                linestyle=st.linestyle, linewidth=1.4, label=_label(c))
+        for key in ("whiskers", "caps"):
+            for artist in parts[key][2 * i: 2 * i + 2]:
+                artist.set(color=st.color)
+        parts["medians"][i].set(color="k", linewidth=1.6)
+        if parts["fliers"]:
+            parts["fliers"][i].set(markeredgecolor=st.color, marker=st.marker)
+
+
+def step_times_figure(groups: dict[str, dict[str, list[np.ndarray]]], scenarios: dict[str, str]
+                      ) -> Any:
+    """Box plots of the per-step ``act`` times, one panel per env (``groups[env][controller]``
+    are the trials' ``act_time`` arrays in seconds), each with the env's control period."""
+    fig, axes = plt.subplots(1, len(groups), figsize=(5.2 * len(groups), 4.4), squeeze=False)
     for ax, (env, per) in zip(axes.flat, groups.items(), strict=True):
         names = list(per)
         data = [1e3 * np.concatenate(per[c]) for c in names]
-        ax.boxplot(data, whis=(5, 95), showfliers=True, flierprops={"markersize": 2})
+        parts = ax.boxplot(data, whis=(5, 95), showfliers=True, patch_artist=True,
+                           flierprops={"markersize": 2})
+        _style_boxes(parts, names)
+        period = _control_period_line(ax, _env_model(env, scenarios[env]).dt)
         ax.set_xticks(range(1, len(names) + 1), [_label(c) for c in names], rotation=60,
                       ha="right", fontsize=8)
         ax.set_yscale("log")
         ax.set_ylabel("act() time per step (ms)")
         ax.set_title(ENVS[env].env_id, fontsize=9)
         ax.grid(alpha=0.3, axis="y")
-        for c, d in zip(names, data, strict=True):
+        ax.legend(handles=[period], fontsize=7, loc="best")
+    controllers = {c for per in groups.values() for c in per}
+    fig.suptitle("Per-step compute" + _notes("whiskers 5-95%",
+                                             "above the control period: not real-time",
+                                             [n.replace("dashed", "dashed box").replace(
+                                                 "dash-dot", "dash-dot box")
+                                              for n in _scheme_notes(controllers)]),
+                 fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def section_step_times(ctx: Context, exp: Experiment) -> list[str]:
+    """Box plot of the per-step ``act`` time of each controller, one panel per env, with the
+    env's control period (a step above it would not keep up in real time)."""
+    groups: dict[str, dict[str, list[np.ndarray]]] = defaultdict(lambda: defaultdict(list))
+    scenarios: dict[str, str] = {}
+    for t in ctx.of(exp):
+        if t.spec.kind == "episode" and t.ok:
+            groups[t.spec.env][t.spec.controller].append(t.arrays["act_time"])
+            scenarios.setdefault(t.spec.env, t.spec.scenario)
+    if not groups:
+        return []
+    fig = step_times_figure(groups, scenarios)
+    rows = []
+    for env, per in groups.items():
+        for c, arrays in per.items():
+            d = 1e3 * np.concatenate(arrays)
             rows.append([env, _label(c), len(d), float(np.median(d)),
                          float(np.percentile(d, 95)), float(d.max())])
-    fig.suptitle("Per-step compute (whiskers 5-95%)", fontsize=10)
-    fig.tight_layout()
     name = _save(fig, ctx.out_dir, f"{exp.name}_step_times.png")
     lines = ["", f"![step times]({name})", ""]
     lines += markdown_table(["env", "controller", "steps", "median (ms)", "p95 (ms)", "max (ms)"],
@@ -552,25 +687,25 @@ def section_sample_efficiency(ctx: Context, exp: Experiment) -> list[str]:
     for (env, scenario), rows in by.items():
         fig, (ax_s, ax_r) = plt.subplots(1, 2, figsize=(11, 4))
         table = []
-        colors = {"sac": _color("sac"), "ppo": _color("ppo")}
-        for algo, color in colors.items():
+        for algo in ("sac", "ppo"):
             curve = [p for p in _learning_curve(env, algo) if p["timesteps"] > 0]  # log axis
             rl_row = next((r for r in rows if r["controller"] == algo), None)
             if curve and rl_row is not None and rl_row["episodes"]:
+                st = _style(algo)
                 steps = [p["timesteps"] for p in curve]
-                ax_s.plot(steps, [p["success_rate"] for p in curve], color=color, lw=1,
+                curve_style = {"color": st.color, "ls": st.linestyle, "lw": 1, "alpha": 0.8}
+                ax_s.plot(steps, [p["success_rate"] for p in curve], **curve_style,
                           label=f"{algo.upper()} learning curve (training evals)")
-                ax_r.plot(steps, [p["mean_return"] for p in curve], color=color, lw=1,
+                ax_r.plot(steps, [p["mean_return"] for p in curve], **curve_style,
                           label=f"{algo.upper()} learning curve (training evals)")
         for r in rows:
             if not r["episodes"]:
                 table.append([r["label"], "", "", "", r["status"]])
                 continue
-            style = {"marker": "s" if r["controller"] in colors else "o",
-                     "color": _color(r["controller"])}
+            point = _style(r["controller"]).point()
             x = r["data_steps_mean"]
-            ax_s.plot([x], [r["success_rate"]], ls="", ms=8, label=r["label"], **style)
-            ax_r.plot([x], [-r["cost_mean"]], ls="", ms=8, label=r["label"], **style)
+            ax_s.plot([x], [r["success_rate"]], label=r["label"], **point)
+            ax_r.plot([x], [-r["cost_mean"]], label=r["label"], **point)
             table.append([r["label"], _fmt(x, 0), r["success_rate"], -r["cost_mean"],
                           f"{r['episodes']} episodes"])
         for ax, ylabel in ((ax_s, "success rate"), (ax_r, "return (= minus cost)")):
@@ -600,6 +735,36 @@ def compute_rows(trials: Iterable[Trial]) -> list[dict[str, Any]]:
     return rows
 
 
+def scaling_figure(groups: Sequence[tuple[str, str, str]],
+                   trials: dict[tuple[str, str, str], list[Trial]]) -> Any:
+    """Box plots of the ``act`` times against the samples learned, one panel per (env,
+    scenario, controller), each with the env's control period."""
+    fig, axes = plt.subplots(1, len(groups), figsize=(5 * len(groups), 3.8), squeeze=False)
+    for ax, group in zip(axes.flat, groups, strict=True):
+        env, scenario, controller = group
+        st = _style(controller)
+        params = []
+        for t in trials[group]:
+            if t.ok:
+                params.append(t.spec.param)
+                parts = ax.boxplot([1e3 * t.arrays["act_time"]], positions=[t.spec.param],
+                                   widths=[0.25 * t.spec.param], whis=(5, 95),
+                                   showfliers=False, patch_artist=True)
+                _style_boxes(parts, [controller])
+        period = _control_period_line(ax, _env_model(env, scenario).dt)
+        ax.set_xscale("log")
+        ax.set_xticks(params, [str(p) for p in params])
+        ax.xaxis.set_minor_formatter(NullFormatter())
+        ax.set_xlabel("samples learned before the episode")
+        ax.set_ylabel("act() time per step (ms)")
+        ax.set_title(f"{_label(controller)}, {env} `{scenario}`", fontsize=9, color=st.color)
+        ax.grid(alpha=0.3)
+        ax.legend(handles=[period], fontsize=7, loc="best")
+    fig.suptitle("Per-step compute against the samples learned (whiskers 5-95%)", fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
 def section_scaling(ctx: Context, exp: Experiment) -> list[str]:
     """SSGP-MPC step time against the number of samples learned."""
     keys = {s.key for s in exp.specs}
@@ -610,23 +775,10 @@ def section_scaling(ctx: Context, exp: Experiment) -> list[str]:
     rows.sort(key=lambda r: (r["env"], r.get("controller", "ssgp-mpc"), r["param"]))
     groups = list(dict.fromkeys((r["env"], r["scenario"], r.get("controller", "ssgp-mpc"))
                                 for r in rows))
-    fig, axes = plt.subplots(1, len(groups), figsize=(5 * len(groups), 3.6), squeeze=False)
-    for ax, (env, scenario, controller) in zip(axes.flat, groups, strict=True):
-        params = []
-        for t in (ctx.trials[s] for s in exp.specs if s.kind == "ssgp-act-scaling"
-                  and (s.env, s.scenario, s.controller) == (env, scenario, controller)):
-            if t.ok:
-                params.append(t.spec.param)
-                ax.boxplot([1e3 * t.arrays["act_time"]], positions=[t.spec.param],
-                           widths=[0.25 * t.spec.param], whis=(5, 95), showfliers=False)
-        ax.set_xscale("log")
-        ax.set_xticks(params, [str(p) for p in params])
-        ax.xaxis.set_minor_formatter(NullFormatter())
-        ax.set_xlabel("samples learned before the episode")
-        ax.set_ylabel("act() time (ms)")
-        ax.set_title(f"{_label(controller)}, {env} `{scenario}`", fontsize=9)
-        ax.grid(alpha=0.3)
-    fig.tight_layout()
+    fig = scaling_figure(groups, {g: [ctx.trials[s] for s in exp.specs
+                                      if s.kind == "ssgp-act-scaling"
+                                      and (s.env, s.scenario, s.controller) == g]
+                                  for g in groups})
     name = _save(fig, ctx.out_dir, f"{exp.name}_ssgp_act_scaling.png")
     lines = ["", "SSGP-MPC recipes (r = 50), seed 0, after learning N samples:",
              "", f"![act time vs samples]({name})", ""]
@@ -643,6 +795,31 @@ def _row_key(row: dict[str, Any]) -> str:
     return str(row["key"])
 
 
+def update_time_figure(rows: Sequence[dict[str, Any]]) -> Any:
+    """Median and p95 single-sample update time against the rank r (rows of
+    :func:`compute_rows`, measurement ``ssgp-update-time``); ticks at the ranks measured."""
+    ranks = [int(r["r"]) for r in rows]
+    fig, ax = plt.subplots(figsize=(5.2, 3.8))
+    color = _style("ssgp-mpc").color
+    ax.plot(ranks, [r["update_median_ms"] for r in rows], "o-", color=color, label="median")
+    ax.plot(ranks, [r["update_p95_ms"] for r in rows], "s--", color=color, mfc="none",
+            label="p95")
+    ax.set_xscale("log")
+    ax.xaxis.set_major_locator(FixedLocator(ranks))
+    ax.xaxis.set_major_formatter(FixedFormatter([str(r) for r in ranks]))
+    ax.xaxis.set_minor_locator(NullLocator())
+    ax.set_yscale("log")
+    ax.set_xlabel("rank r (frequencies, count; 2r features per output)")
+    ax.set_ylabel("update time per sample (ms)")
+    envs = sorted({str(r["env"]) for r in rows})
+    ax.set_title(f"IncrementalSSGP.update, one sample at a time ({', '.join(envs)})",
+                 fontsize=9)
+    ax.legend()
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    return fig
+
+
 def section_update_time(ctx: Context, exp: Experiment) -> list[str]:
     """SSGP single-sample update time against the rank r."""
     keys = {s.key for s in exp.specs}
@@ -650,18 +827,11 @@ def section_update_time(ctx: Context, exp: Experiment) -> list[str]:
                    and _row_key(r) in keys), key=lambda r: r["param"])
     if not rows:
         return []
-    fig, ax = plt.subplots(figsize=(5, 3.6))
-    ax.plot([r["r"] for r in rows], [r["update_median_ms"] for r in rows], "o-", label="median")
-    ax.plot([r["r"] for r in rows], [r["update_p95_ms"] for r in rows], "s--", label="p95")
-    ax.set_xscale("log", base=2)
-    ax.set_yscale("log")
-    ax.set_xlabel("r (frequencies; 2r features per output)")
-    ax.set_ylabel("update time per sample (ms)")
-    ax.legend()
-    ax.grid(alpha=0.3)
+    fig = update_time_figure(rows)
     name = _save(fig, ctx.out_dir, f"{exp.name}_ssgp_update_time.png")
     lines = ["", f"IncrementalSSGP.update on single samples ({rows[0]['updates']} timed updates "
-             f"after a fit on the initial data; {rows[0]['n_outputs']} outputs, cart pole):", "",
+             f"after a fit on the initial data; {rows[0]['n_outputs']} outputs, "
+             f"{', '.join(sorted({str(r['env']) for r in rows}))}):", "",
              f"![update time vs r]({name})", ""]
     lines += markdown_table(["r", "median (ms)", "p95 (ms)", "max (ms)", "fit (s)"],
                             [[r["r"], r["update_median_ms"], r["update_p95_ms"],

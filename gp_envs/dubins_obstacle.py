@@ -70,6 +70,7 @@ class DubinsObstacleEnv(GPEnv):
     }
     DEFAULT_SCENARIO = "paper"
     DT = 0.1
+    metadata: ClassVar[dict[str, Any]] = {**GPEnv.metadata, "render_fps": round(1 / DT)}
     SUBSTEPS = 5
     X_LB = np.array([-10.0, -10.0, -np.inf])
     X_UB = np.array([10.0, 10.0, np.inf])

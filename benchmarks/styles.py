@@ -1,0 +1,146 @@
+"""How every controller and every state or control looks in the report's figures.
+
+:data:`STYLES` is the one table mapping each recipe of :data:`benchmarks.controllers.CONTROLLERS`
+to a fixed :class:`Style`, used by every figure of :mod:`benchmarks.report`, so that a controller
+has the same colour, line style and marker everywhere. The conventions:
+
+- the colour names the *model* a controller plans with (nominal, oracle, offline GP, SSGP and
+  each SSGP speed variant, the SSGP with its residual linearized) or the RL algorithm;
+- the line style names the *scheme*: solid receding-horizon MPC and RL policies, dashed
+  episodic (planned once, open loop), dash-dot real-time iteration;
+- every recipe has its own marker (the sample-efficiency plot draws points only);
+- the nominal MPC is drawn thick and underneath, the oracle thin and on top, so that the
+  nominal stays visible where the two coincide.
+
+:data:`UNITS` gives the unit of every state and control of every system (keyed by the physics
+module's short name, e.g. ``"cartpole"``, and the names in its ``STATE_NAMES`` and
+``CONTROL_NAMES``), for axis labels. A recipe or a system missing here makes the report raise
+(and ``tests/test_report_plots.py`` fail) rather than draw an unlabelled or look-alike line.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+RECEDING, EPISODIC, RTI = "-", "--", "-."
+"""Line styles of the three schemes."""
+
+
+@dataclass(frozen=True)
+class Style:
+    """How one controller is drawn.
+
+    Attributes:
+        color: matplotlib colour.
+        linestyle: matplotlib line style (:data:`RECEDING`, :data:`EPISODIC`, :data:`RTI`).
+        marker: matplotlib marker, unique per recipe.
+        linewidth: line width in points.
+        zorder: drawing order (higher on top).
+    """
+
+    color: str
+    linestyle: str
+    marker: str
+    linewidth: float = 1.3
+    zorder: float = 3.0
+
+    def line(self, n_points: int, markers: int = 8) -> dict[str, Any]:
+        """Keyword arguments of ``Axes.plot`` / ``Axes.step`` for a line of ``n_points`` points
+        with this style: about ``markers`` markers along it, staggered per recipe so that the
+        markers of coinciding lines do not hide one another."""
+        every = max(1, n_points // markers)
+        offset = (_ORDER.get(self.marker, 0) * max(1, every // 5)) % every
+        return {"color": self.color, "ls": self.linestyle, "marker": self.marker,
+                "markevery": (offset, every), "lw": self.linewidth, "zorder": self.zorder,
+                "ms": 5, "markerfacecolor": "none" if self.linestyle == EPISODIC else self.color}
+
+    def point(self) -> dict[str, Any]:
+        """Keyword arguments of ``Axes.plot`` for a single marker with this style."""
+        return {"color": self.color, "ls": "", "marker": self.marker, "ms": 8,
+                "zorder": self.zorder}
+
+
+# Okabe-Ito (colour-blind safe) first, then a few of matplotlib's tab10 for the rest
+_NOMINAL = "#0072B2"  # blue
+_ORACLE = "#000000"  # black
+_GP = "#E69F00"  # orange
+_SSGP = "#009E73"  # bluish green
+_SSGP_LINEARIZED = "#CC79A7"  # reddish purple
+_SSGP_NOMINAL_HESSIAN = "#56B4E9"  # sky blue
+_SSGP_MODEL_INPUTS = "#D55E00"  # vermillion
+_SSGP_LINEARIZED_MODEL_INPUTS = "#8C564B"  # brown
+_SAC = "#9467BD"  # purple
+_PPO = "#BCBD22"  # olive
+
+STYLES: dict[str, Style] = {
+    # nominal: thick and underneath; oracle: thin and on top (the two often coincide)
+    "nominal-mpc": Style(_NOMINAL, RECEDING, "o", linewidth=2.2, zorder=2.0),
+    "nominal-episodic": Style(_NOMINAL, EPISODIC, "s", linewidth=2.2, zorder=2.0),
+    "nominal-mpc-rti": Style(_NOMINAL, RTI, "p", linewidth=2.2, zorder=2.0),
+    "oracle-mpc": Style(_ORACLE, RECEDING, "x", linewidth=1.0, zorder=5.0),
+    "oracle-episodic": Style(_ORACLE, EPISODIC, "+", linewidth=1.0, zorder=5.0),
+    "oracle-mpc-rti": Style(_ORACLE, RTI, "1", linewidth=1.0, zorder=5.0),
+    "gp-mpc": Style(_GP, RECEDING, "D"),
+    "gp-episodic": Style(_GP, EPISODIC, "d"),
+    "ssgp-mpc": Style(_SSGP, RECEDING, "^"),
+    "ssgp-episodic": Style(_SSGP, EPISODIC, "<"),
+    "ssgp-mpc-nominal-hessian": Style(_SSGP_NOMINAL_HESSIAN, RECEDING, ">"),
+    "ssgp-mpc-model-inputs": Style(_SSGP_MODEL_INPUTS, RECEDING, "P"),
+    "ssgp-mpc-linearized": Style(_SSGP_LINEARIZED, RECEDING, "v"),
+    "ssgp-mpc-linearized-model-inputs": Style(_SSGP_LINEARIZED_MODEL_INPUTS, RECEDING, "h"),
+    # the SSGP RTI plans with the residual linearized per node, as ssgp-mpc-linearized does
+    "ssgp-mpc-rti": Style(_SSGP_LINEARIZED, RTI, "8"),
+    "sac": Style(_SAC, RECEDING, "*"),
+    "ppo": Style(_PPO, RECEDING, "X"),
+}
+"""The style of every controller recipe, by recipe name (see the module docstring)."""
+
+
+_ORDER = {s.marker: i for i, s in enumerate(STYLES.values())}
+"""Position of each recipe's (unique) marker in :data:`STYLES`, to stagger markers."""
+
+
+def style(controller: str) -> Style:
+    """The style of recipe ``controller``.
+
+    Raises:
+        KeyError: a recipe without a style in :data:`STYLES` (add one there).
+    """
+    try:
+        return STYLES[controller]
+    except KeyError:
+        raise KeyError(f"controller {controller!r} has no plot style: add it to "
+                       "benchmarks.styles.STYLES") from None
+
+
+UNITS: dict[str, dict[str, str]] = {
+    "cartpole": {"x": "m", "theta": "rad", "xdot": "m/s", "thetadot": "rad/s", "f": "N"},
+    "quadrotor": {
+        "x": "m", "y": "m", "z": "m", "phi": "rad", "theta": "rad", "psi": "rad",
+        "xdot": "m/s", "ydot": "m/s", "zdot": "m/s",
+        "phidot": "rad/s", "thetadot": "rad/s", "psidot": "rad/s",
+        "F1": "N", "F2": "N", "F3": "N", "F4": "N",
+    },
+    "dubins": {"x": "m", "y": "m", "psi": "rad", "u1": "m/s", "u2": "rad/s"},
+}
+"""Unit of each state and control, by system (physics module short name) and name, as the
+physics modules' docstrings of ``STATE_NAMES`` and ``CONTROL_NAMES`` give them."""
+
+
+def unit(system: str, name: str) -> str:
+    """The unit of state or control ``name`` of ``system``.
+
+    Raises:
+        KeyError: a system or name without a unit in :data:`UNITS` (add it there).
+    """
+    try:
+        return UNITS[system][name]
+    except KeyError:
+        raise KeyError(f"{system} {name!r} has no unit: add it to benchmarks.styles.UNITS"
+                       ) from None
+
+
+def axis_label(system: str, name: str) -> str:
+    """``"name (unit)"`` for an axis showing state or control ``name`` of ``system``."""
+    return f"{name} ({unit(system, name)})"
