@@ -134,7 +134,7 @@ def _env_model(env: str, scenario: str) -> Any:
 @functools.cache
 def _system(env: str) -> str:
     """The physics module's short name of benchmark env ``env`` (the key of
-    :data:`benchmarks.styles.UNITS`)."""
+    :func:`benchmarks.styles.unit`)."""
     import gymnasium as gym
 
     made = gym.make(ENVS[env].env_id)

@@ -12,10 +12,10 @@ has the same colour, line style and marker everywhere. The conventions:
 - the nominal MPC is drawn thick and underneath, the oracle thin and on top, so that the
   nominal stays visible where the two coincide.
 
-:data:`UNITS` gives the unit of every state and control of every system (keyed by the physics
-module's short name, e.g. ``"cartpole"``, and the names in its ``STATE_NAMES`` and
-``CONTROL_NAMES``), for axis labels. A recipe or a system missing here makes the report raise
-(and ``tests/test_report_plots.py`` fail) rather than draw an unlabelled or look-alike line.
+:func:`unit` gives the unit of every state and control of every registered system, from its
+physics module (``STATE_UNITS``, ``CONTROL_UNITS``), for axis labels. A recipe missing here
+makes the report raise (and ``tests/test_report_plots.py`` fail) rather than draw a look-alike
+line.
 """
 
 from __future__ import annotations
@@ -114,31 +114,25 @@ def style(controller: str) -> Style:
                        "benchmarks.styles.STYLES") from None
 
 
-UNITS: dict[str, dict[str, str]] = {
-    "cartpole": {"x": "m", "theta": "rad", "xdot": "m/s", "thetadot": "rad/s", "f": "N"},
-    "quadrotor": {
-        "x": "m", "y": "m", "z": "m", "phi": "rad", "theta": "rad", "psi": "rad",
-        "xdot": "m/s", "ydot": "m/s", "zdot": "m/s",
-        "phidot": "rad/s", "thetadot": "rad/s", "psidot": "rad/s",
-        "F1": "N", "F2": "N", "F3": "N", "F4": "N",
-    },
-    "dubins": {"x": "m", "y": "m", "psi": "rad", "u1": "m/s", "u2": "rad/s"},
-}
-"""Unit of each state and control, by system (physics module short name) and name, as the
-physics modules' docstrings of ``STATE_NAMES`` and ``CONTROL_NAMES`` give them."""
-
-
 def unit(system: str, name: str) -> str:
-    """The unit of state or control ``name`` of ``system``.
+    """The unit of state or control ``name`` of the registered ``system``, from its physics
+    module's ``STATE_UNITS`` / ``CONTROL_UNITS`` (:func:`gp_envs.register_system` checks
+    they are there).
 
     Raises:
-        KeyError: a system or name without a unit in :data:`UNITS` (add it there).
+        KeyError: an unknown system, or a name that is none of its states and controls.
     """
+    from gp_envs.systems import SYSTEMS
+
+    if system not in SYSTEMS:
+        raise KeyError(f"{system!r} has no unit table: it is not a registered system")
+    physics = SYSTEMS[system].env_class().physics
+    table = dict(zip(physics.STATE_NAMES, physics.STATE_UNITS, strict=True))
+    table.update(zip(physics.CONTROL_NAMES, physics.CONTROL_UNITS, strict=True))
     try:
-        return UNITS[system][name]
+        return table[name]
     except KeyError:
-        raise KeyError(f"{system} {name!r} has no unit: add it to benchmarks.styles.UNITS"
-                       ) from None
+        raise KeyError(f"{system} has no state or control {name!r} (so no unit)") from None
 
 
 def axis_label(system: str, name: str) -> str:

@@ -144,7 +144,8 @@ def register_system(system: System) -> System:
     Raises:
         ValueError: another system already has that name or env id; the env class's physics
             module is not named :attr:`System.name`; a benchmark scenario the env does not
-            have; ``max_episode_steps < 1``; ``position_dims`` outside ``[0, n]``; a
+            have; its physics module without ``STATE_UNITS`` / ``CONTROL_UNITS`` matching its
+            names; ``max_episode_steps < 1``; ``position_dims`` outside ``[0, n]``; a
             ``data_start`` of the wrong shape.
     """
     old = _SYSTEMS.get(system.name)
@@ -172,6 +173,10 @@ def register_system(system: System) -> System:
         raise ValueError(f"system {system.name!r}: benchmark scenario(s) {unknown} are not "
                          f"scenarios of {cls.__name__} ({sorted(cls.SCENARIOS)})")
     n = len(physics.STATE_NAMES)
+    for names, units in (("STATE_NAMES", "STATE_UNITS"), ("CONTROL_NAMES", "CONTROL_UNITS")):
+        if len(getattr(physics, units, ())) != len(getattr(physics, names)):
+            raise ValueError(f"system {system.name!r}: its physics module needs {units}, one "
+                             f"unit string per entry of {names} (for plots and docs)")
     if not 0 <= system.position_dims <= n:
         raise ValueError(f"system {system.name!r}: position_dims must be in [0, {n}], "
                          f"got {system.position_dims}")

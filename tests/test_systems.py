@@ -42,7 +42,9 @@ from gp_envs.physics.ranges import ParamRange
 PARAM_RANGES = {"m": ParamRange.positive("mass, kg"), "c": ParamRange.nonnegative("damping, 1/s")}
 PARAM_NAMES = tuple(PARAM_RANGES)
 STATE_NAMES = ("p", "v")
+STATE_UNITS = ("m", "m/s")
 CONTROL_NAMES = ("f",)
+CONTROL_UNITS = ("N",)
 
 
 def ode(x, u, p):
@@ -163,6 +165,11 @@ def test_registration_refuses_inconsistent_systems(user_system):
         with pytest.raises(ValueError, match=message):
             register_system(System(**{**base.__dict__, **change}))
         assert "pointmass" not in SYSTEMS and "user/PointMass-v0" not in gym.registry
+    physics = base.env_class().physics
+    physics.STATE_UNITS = ("m",)
+    with pytest.raises(ValueError, match="needs STATE_UNITS"):
+        register_system(base)
+    physics.STATE_UNITS = ("m", "m/s")
     register_system(base)
 
 

@@ -2,7 +2,8 @@
 
 Each module defines ``PARAM_RANGES`` (every parameter's meaning, unit and valid range, the
 table :func:`~gp_envs.physics.ranges.check_params` checks every parameter set against),
-``PARAM_NAMES``, ``STATE_NAMES``, ``CONTROL_NAMES`` and ``ode(x, u, p)``.
+``PARAM_NAMES``, ``STATE_NAMES``, ``CONTROL_NAMES``, their ``STATE_UNITS`` and
+``CONTROL_UNITS``, and ``ode(x, u, p)``.
 The envs simulate the true plant with it (numeric, through compiled CasADi functions) and expose
 the same function with nominal parameters to controllers (symbolic), see :mod:`gp_envs.model`.
 """

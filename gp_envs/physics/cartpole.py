@@ -33,8 +33,12 @@ PARAM_NAMES = tuple(PARAM_RANGES)
 """``("mc", "mp", "l", "b1", "b2", "g")``, see :data:`PARAM_RANGES`."""
 STATE_NAMES = ("x", "theta", "xdot", "thetadot")
 """Cart position (m), pole angle (rad, 0 down), their rates (m/s, rad/s)."""
+STATE_UNITS = ("m", "rad", "m/s", "rad/s")
+"""Unit of each state component (axis labels, documentation)."""
 CONTROL_NAMES = ("f",)
 """Horizontal force on the cart (N)."""
+CONTROL_UNITS = ("N",)
+"""Unit of each control component."""
 
 
 def ode(x: ca.SX, u: ca.SX, p: ca.SX) -> ca.SX:

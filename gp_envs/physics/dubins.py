@@ -28,8 +28,12 @@ PARAM_NAMES = tuple(PARAM_RANGES)
 """``("b1", "b2")``, see :data:`PARAM_RANGES`."""
 STATE_NAMES = ("x", "y", "psi")
 """Position (m) and heading (rad, from the x axis)."""
+STATE_UNITS = ("m", "m", "rad")
+"""Unit of each state component (axis labels, documentation)."""
 CONTROL_NAMES = ("u1", "u2")
 """Commanded speed (m/s) and commanded turn rate (rad/s)."""
+CONTROL_UNITS = ("m/s", "rad/s")
+"""Unit of each control component."""
 
 
 def ode(x: ca.SX, u: ca.SX, p: ca.SX) -> ca.SX:

@@ -29,8 +29,12 @@ PARAM_NAMES = tuple(PARAM_RANGES)
 """``("m", "l", "b", "g")``, see :data:`PARAM_RANGES`."""
 STATE_NAMES = ("theta", "thetadot")
 """Angle (rad, 0 down) and angular rate (rad/s)."""
+STATE_UNITS = ("rad", "rad/s")
+"""Unit of each state component (axis labels, documentation)."""
 CONTROL_NAMES = ("tau",)
 """Motor torque at the pivot (N m)."""
+CONTROL_UNITS = ("N m",)
+"""Unit of each control component."""
 
 
 def ode(x: ca.SX, u: ca.SX, p: ca.SX) -> ca.SX:

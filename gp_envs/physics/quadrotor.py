@@ -37,8 +37,13 @@ PARAM_NAMES = tuple(PARAM_RANGES)
 STATE_NAMES = ("x", "y", "z", "phi", "theta", "psi",
                "xdot", "ydot", "zdot", "phidot", "thetadot", "psidot")
 """Position (m, NED), roll/pitch/yaw (rad), their rates (m/s, rad/s)."""
+STATE_UNITS = ("m", "m", "m", "rad", "rad", "rad",
+               "m/s", "m/s", "m/s", "rad/s", "rad/s", "rad/s")
+"""Unit of each state component (axis labels, documentation)."""
 CONTROL_NAMES = ("F1", "F2", "F3", "F4")
 """Rotor thrusts (N)."""
+CONTROL_UNITS = ("N", "N", "N", "N")
+"""Unit of each control component."""
 YAW_DRAG_RATIO = 0.05
 """Rotor drag torque per unit thrust and arm length (the paper's 0.05 L)."""
 
