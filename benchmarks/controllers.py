@@ -247,10 +247,11 @@ def rl_model_dir(env: str, algo: str) -> Path:
     return MODELS_DIR / env / algo
 
 
-def make_env(env: str, scenario: str) -> gym.Env:
-    """``gym.make`` of a benchmark env (short name) in ``scenario``."""
+def make_env(env: str, scenario: str, **options: Any) -> gym.Env:
+    """``gym.make`` of a benchmark env (short name) in ``scenario``; ``options`` are the env's
+    other keyword arguments (``randomize``, ``observation_noise``, ``true_params``, ...)."""
     check_env_scenario(env, scenario)
-    return gym.make(ENVS[env].env_id, scenario=scenario)
+    return gym.make(ENVS[env].env_id, scenario=scenario, **options)
 
 
 class OracleModel:
@@ -277,7 +278,9 @@ def make_learner(kind: str) -> Any:
 
 
 def build_controller(name: str, env: gym.Env, env_name: str, seed: int,
-                     n_init: int = N_INITIAL_POINTS) -> BuiltController:
+                     n_init: int = N_INITIAL_POINTS, *, data_env: gym.Env | None = None,
+                     settings: dict[str, Any] | None = None,
+                     options: dict[str, Any] | None = None) -> BuiltController:
     """Build controller ``name`` for ``env`` and reset ``env`` with ``seed``.
 
     Learning recipes first collect ``n_init`` transitions with
@@ -290,6 +293,9 @@ def build_controller(name: str, env: gym.Env, env_name: str, seed: int,
         env_name: its short name (key of :data:`ENVS`), for the RL model path.
         seed: the trial's seed.
         n_init: initial transitions for the learning recipes.
+        data_env: the env the initial data are collected on (default ``env``).
+        settings: extra :class:`gp_agents.PseudospectralMPC` settings (MPC recipes only).
+        options: ``env.reset`` options of the episode (e.g. a start state).
 
     Raises:
         UnknownNameError: unknown controller name.
@@ -298,17 +304,18 @@ def build_controller(name: str, env: gym.Env, env_name: str, seed: int,
     check_name("controller", name, list(CONTROLLERS))
     recipe = CONTROLLERS[name]
     if recipe.family == "rl":
-        return _build_rl(recipe, env, env_name, seed)
+        return _build_rl(recipe, env, env_name, seed, options)
     from gp_agents import PseudospectralMPC, collect_initial_data
 
     data = None
     if recipe.learner is not None:
-        data = collect_initial_data(env, n_init, seed=seed)
-    obs, _ = env.reset(seed=seed)
+        data = collect_initial_data(data_env or env, n_init, seed=seed)
+    obs, _ = env.reset(seed=seed, options=options)
     learner = make_learner(recipe.learner) if recipe.learner is not None else None
     source = OracleModel(env) if recipe.oracle else None
     agent = PseudospectralMPC.from_env(env, learner, model_source=source, mode=recipe.mode,
-                                       learn_online=recipe.learn_online, **dict(recipe.settings))
+                                       learn_online=recipe.learn_online,
+                                       **{**dict(recipe.settings), **(settings or {})})
     if data is not None:
         agent.pretrain(data)
     agent.reset()
@@ -316,8 +323,8 @@ def build_controller(name: str, env: gym.Env, env_name: str, seed: int,
                            {"horizon_s": agent.horizon, "mesh": agent.mesh.describe()})
 
 
-def _build_rl(recipe: ControllerRecipe, env: gym.Env, env_name: str, seed: int
-              ) -> BuiltController:
+def _build_rl(recipe: ControllerRecipe, env: gym.Env, env_name: str, seed: int,
+               options: dict[str, Any] | None = None) -> BuiltController:
     path = rl_model_dir(env_name, str(recipe.algo))
     if not (path / "metadata.json").is_file() or not (path / "model.zip").is_file():
         raise ControllerUnavailableError(
@@ -333,7 +340,7 @@ def _build_rl(recipe: ControllerRecipe, env: gym.Env, env_name: str, seed: int
         agent = RLAgent.load(path, env)
     except ValueError as err:  # trained for another scenario / spaces
         raise ControllerUnavailableError(str(err)) from err
-    obs, _ = env.reset(seed=seed)
+    obs, _ = env.reset(seed=seed, options=options)
     agent.reset()
     return BuiltController(agent, obs, int(agent.training_steps),
                            {"model_dir": str(path.relative_to(MODELS_DIR.parent.parent)),

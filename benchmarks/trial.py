@@ -43,6 +43,71 @@ STATUS_UNAVAILABLE = "unavailable"
 
 
 @dataclass(frozen=True, order=True)
+class Cell:
+    """How an episode's system, data and start differ from the scenario's defaults (the
+    robustness envelope; all defaults: the scenario as registered).
+
+    Attributes:
+        randomize: the env's ``randomize`` (relative spread of the true parameters per reset).
+        data: where the learning recipes' initial data come from when the truth is
+            randomized: ``"same"``, the system then controlled (the episode's truth draw);
+            ``"diff"``, an independent draw of the same spread (the system changed between
+            data collection and control). Without randomization both are the episode's truth.
+        noise: the env's ``observation_noise``: standard deviation added to every observed
+            component, in its unit (m, rad, m/s, rad/s), during data collection and control.
+        start: ``"default"`` (the env's reset) or ``"perturbed"`` (the reset state plus a
+            seeded uniform offset within the system's registered ``perturbation`` widths;
+            cart pole: x0 +-0.5 m, theta0 +-0.3 rad, rates +-0.1).
+        kappa: the MPC's ``uncertainty_radius`` (the paper's U_r scale of the obstacle margin).
+    """
+
+    randomize: float = 0.0
+    data: str = "same"
+    noise: float = 0.0
+    start: str = "default"
+    kappa: float = 0.0
+
+    def __post_init__(self) -> None:
+        if self.data not in ("same", "diff"):
+            raise ValueError(f"Cell.data must be 'same' or 'diff', got {self.data!r}")
+        if self.start not in ("default", "perturbed"):
+            raise ValueError(f"Cell.start must be 'default' or 'perturbed', got {self.start!r}")
+        for name in ("randomize", "noise", "kappa"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value >= 0):
+                raise ValueError(f"Cell.{name} must be a finite number >= 0, got {value!r}")
+
+    @property
+    def key(self) -> str:
+        """Key suffix: empty for the default cell (so that existing trial names stay)."""
+        parts = []
+        if self.randomize:
+            parts.append(f"r{self.randomize:g}")
+        if self.data != "same":
+            parts.append(f"d{self.data}")
+        if self.noise:
+            parts.append(f"noise{self.noise:g}")
+        if self.start != "default":
+            parts.append(self.start)
+        if self.kappa:
+            parts.append(f"k{self.kappa:g}")
+        return "_".join(parts)
+
+    def describe(self) -> str:
+        """One line for tables: ``"fixed truth"`` or e.g. ``"randomize 0.1, diff data"``."""
+        parts = []
+        if self.randomize:
+            parts.append(f"randomize {self.randomize:g}, {self.data} data")
+        if self.noise:
+            parts.append(f"noise {self.noise:g}")
+        if self.start != "default":
+            parts.append(f"{self.start} start")
+        if self.kappa:
+            parts.append(f"kappa {self.kappa:g}")
+        return ", ".join(parts) or "fixed truth"
+
+
+@dataclass(frozen=True, order=True)
 class TrialSpec:
     """What to run; the :attr:`key` names the trial's file.
 
@@ -56,6 +121,8 @@ class TrialSpec:
         param: the measurement's parameter (samples learned, SSGP rank r), else None.
         max_steps: stop the episode after this many steps (smoke runs), None for the full one.
         n_init: initial transitions collected for the learning recipes.
+        cell: the episode's variation of system, data and start (:class:`Cell`; a dict of
+            its fields is accepted, as stored in trial files).
     """
 
     kind: str
@@ -66,11 +133,18 @@ class TrialSpec:
     param: int | None = None
     max_steps: int | None = None
     n_init: int = N_INITIAL_POINTS
+    cell: Cell = Cell()
+
+    def __post_init__(self) -> None:
+        if isinstance(self.cell, dict):
+            object.__setattr__(self, "cell", Cell(**self.cell))
 
     @property
     def key(self) -> str:
         """File-name-safe unique name of the trial."""
         parts = [self.kind, self.env, self.scenario, self.controller, f"s{self.seed}"]
+        if self.cell.key:
+            parts.append(self.cell.key)
         if self.param is not None:
             parts.append(f"p{self.param}")
         if self.n_init != N_INITIAL_POINTS:
@@ -101,15 +175,21 @@ def run_episode(spec: TrialSpec) -> dict[str, Any]:
     Raises:
         ControllerUnavailableError: the controller cannot run on this env/scenario.
     """
-    env = make_env(spec.env, spec.scenario)
+    cell = spec.cell
+    env = make_env(spec.env, spec.scenario, randomize=cell.randomize,
+                   observation_noise=cell.noise)
     recipe = CONTROLLERS[spec.controller]
+    options = _start_options(env, spec)
     t_build = time.perf_counter()
-    built = build_controller(spec.controller, env, spec.env, spec.seed, spec.n_init)
+    built = build_controller(spec.controller, env, spec.env, spec.seed, spec.n_init,
+                             data_env=_data_env(env, spec),
+                             settings={"uncertainty_radius": cell.kappa} if cell.kappa else None,
+                             options=options)
     build_s = time.perf_counter() - t_build
     agent = built.agent
     goal = np.asarray(env.unwrapped.nominal_model.task.goal, float)
     t_episode = time.perf_counter()
-    episode = rollout(env, agent, spec.seed, max_steps=spec.max_steps)
+    episode = rollout(env, agent, spec.seed, options=options, max_steps=spec.max_steps)
     episode_s = time.perf_counter() - t_episode
     observations, info, steps = episode.observations, episode.final_info, episode.steps
     success_arr = np.array([bool(i["success"]) for i in episode.infos])
@@ -122,7 +202,7 @@ def run_episode(spec: TrialSpec) -> dict[str, Any]:
         termination = "time limit"
     else:
         termination = "max steps"
-    final = observations[-1]
+    final = gp_envs.oracle_state(env)  # the true final state (observations may be noisy)
     position_error = float("nan")
     k = get_system(spec.env).position_dims
     if k:
@@ -177,6 +257,42 @@ def run_episode(spec: TrialSpec) -> dict[str, Any]:
             arrays[f"diag_{name}"] = value
     env.close()
     return {"metrics": metrics, "arrays": arrays}
+
+
+def _start_options(env: Any, spec: TrialSpec) -> dict[str, Any] | None:
+    """Reset options of the episode: None, or the perturbed start state of ``spec.cell``."""
+    if spec.cell.start == "default":
+        return None
+    env.reset(seed=spec.seed)  # the env's own start for this seed, then a seeded offset
+    width = get_system(spec.env).perturbation
+    if width is None:
+        raise ValueError(f"system {spec.env!r} registers no perturbation widths: no perturbed "
+                         f"start")
+    width = np.asarray(width, float)
+    offset = np.random.default_rng([spec.seed, 0x7374617274]).uniform(-width, width)
+    return {"state": gp_envs.oracle_state(env) + offset}
+
+
+def _data_env(env: Any, spec: TrialSpec) -> Any:
+    """The env the learning recipes collect their initial data on (see :class:`Cell`): the
+    trial's env itself, except with randomized truth, where it is an env of the episode's
+    own truth draw (``"same"``) or one of an independent draw (``"diff"``), and in a
+    time-varying scenario, whose data come from the system before its changes."""
+    cell = spec.cell
+    varying = bool(env.unwrapped.SCENARIOS[spec.scenario].changes)
+    if not cell.randomize:
+        return (make_env(spec.env, spec.scenario, observation_noise=cell.noise,
+                         time_varying=False) if varying else None)
+    if cell.data == "diff":
+        other = make_env(spec.env, spec.scenario, randomize=cell.randomize,
+                         observation_noise=cell.noise)
+        other.reset(seed=spec.seed + 1_000_003)  # a draw no episode seed of the suite makes
+        truth = dict(gp_envs.oracle_model(other).params)
+    else:
+        env.reset(seed=spec.seed)
+        truth = dict(gp_envs.oracle_model(env).params)
+    return make_env(spec.env, spec.scenario, true_params=truth, observation_noise=cell.noise,
+                    time_varying=False)
 
 
 def _plan_plant_defect(env: Any, agent: Any) -> float:

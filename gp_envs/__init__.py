@@ -19,6 +19,7 @@ What a controller may know is ``env.unwrapped.nominal_model`` (a :class:`Control
 from __future__ import annotations
 
 import gymnasium as gym
+import numpy as np
 
 from gp_envs import (  # noqa: F401  (each module registers its system)
     cartpole_swingup,
@@ -38,7 +39,8 @@ from gp_envs.systems import (
 )
 
 __all__ = ["ENV_IDS", "SYSTEMS", "ControlModel", "Obstacle", "PlanningDefaults", "System",
-           "Task", "get_system", "oracle_model", "register_system", "unregister_system"]
+           "Task", "get_system", "oracle_model", "oracle_state", "register_system",
+           "unregister_system"]
 
 __version__ = "0.1.0"
 
@@ -65,3 +67,19 @@ def oracle_model(env: gym.Env) -> ControlModel:
     if not isinstance(base, GPEnv):
         raise TypeError(f"oracle_model needs a gp_envs environment, got {type(base).__name__}")
     return base._oracle()
+
+
+def oracle_state(env: gym.Env) -> np.ndarray:
+    """The *true* current state of ``env`` (n,), as the env would observe it without sensor
+    noise (angles wrapped): for scoring an episode run with ``observation_noise``, never for a
+    controller, which sees only the (noisy) observations.
+
+    Raises:
+        TypeError: ``env`` is not (a wrapper of) a ``gp_envs`` environment.
+    """
+    from gp_envs.base import GPEnv
+
+    base = env.unwrapped
+    if not isinstance(base, GPEnv):
+        raise TypeError(f"oracle_state needs a gp_envs environment, got {type(base).__name__}")
+    return base._observe(base._state)

@@ -9,6 +9,7 @@ frames, the nominal model ``env.unwrapped.nominal_model``) never hands out the t
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
@@ -109,6 +110,8 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
             stream (:data:`NOISE_STREAM`). Only the observation is noisy: the plant, the reward,
             ``info`` and the success criterion use the true state (the task is about the
             system, not the sensor).
+        time_varying: False ignores the scenario's changes (its truth stays the episode's
+            initial one), e.g. for data collected before a time-varying episode.
 
     Raises:
         ValueError: an unknown scenario, render mode or parameter name; ``randomize`` not a
@@ -137,7 +140,8 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
 
     def __init__(self, scenario: str | None = None, true_params: Mapping[str, float] | None = None,
                  randomize: float = 0.0, render_mode: str | None = None,
-                 observation_noise: float | Sequence[float] = 0.0) -> None:
+                 observation_noise: float | Sequence[float] = 0.0,
+                 time_varying: bool = True) -> None:
         scenario = self.DEFAULT_SCENARIO if scenario is None else scenario
         if scenario not in self.SCENARIOS:
             raise ValueError(f"{type(self).__name__}: unknown scenario {scenario!r}; "
@@ -157,6 +161,8 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
                 raise ValueError(f"{type(self).__name__}: unknown parameter(s) {sorted(unknown)}; "
                                  f"known: {list(self.physics.PARAM_NAMES)}")
             truth.update(true_params)
+        if not time_varying:
+            spec = dataclasses.replace(spec, changes=())
         self._spec = spec
         self._plant = self._make_model(truth)  # checks the true parameters' ranges
         self._base_truth = dict(self._plant.params)

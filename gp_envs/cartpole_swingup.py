@@ -159,5 +159,5 @@ SYSTEM = register_system(System(
     name="cartpole", env_id="gp_envs/CartPoleSwingUp-v0",
     entry_point="gp_envs.cartpole_swingup:CartPoleSwingUpEnv", max_episode_steps=120,
     planning=PlanningDefaults(horizon=1.5, n_nodes=16, n_intervals=1),
-    data_policy=initial_data_policy))
+    data_policy=initial_data_policy, perturbation=(0.5, 0.3, 0.1, 0.1)))
 """The cart pole's registration (:mod:`gp_envs.systems`)."""

@@ -150,5 +150,5 @@ SYSTEM = register_system(System(
     planning=PlanningDefaults(horizon=4.0, n_nodes=12, n_intervals=2),
     data_policy=initial_data_policy,
     # data are gathered away from the obstacle: the actuator losses do not depend on position
-    data_start=(-8.0, 6.0, 0.0), position_dims=2))
+    data_start=(-8.0, 6.0, 0.0), position_dims=2, perturbation=(0.5, 0.5, 0.3)))
 """The Dubins vehicle's registration (:mod:`gp_envs.systems`)."""

@@ -127,5 +127,5 @@ SYSTEM = register_system(System(
     # the RTI step's QP solver by measurement (benchmarks/results/rti_qp_solvers.md): qrqp
     # and osqp ~0.5-1 ms, proxqp 6-7 ms on this small QP
     planning=PlanningDefaults(horizon=2.5, n_nodes=12, n_intervals=2, qp_solver="qrqp"),
-    data_policy=initial_data_policy))
+    data_policy=initial_data_policy, perturbation=(0.3, 0.3)))
 """The pendulum's registration (:mod:`gp_envs.systems`)."""

@@ -103,6 +103,8 @@ class System:
         benchmark_scenarios: scenarios the benchmark runs (None: every scenario of the env).
         position_dims: the first ``position_dims`` state components are a position in metres
             (the benchmark reports the final position error); 0: none is reported.
+        perturbation: (n,) half-widths, in the states' units, of the uniform offset the
+            benchmark adds to the env's start for a "perturbed start" (None: not offered).
     """
 
     name: str
@@ -114,6 +116,7 @@ class System:
     data_start: tuple[float, ...] | None = None
     benchmark_scenarios: tuple[str, ...] | None = None
     position_dims: int = 0
+    perturbation: tuple[float, ...] | None = None
 
     def env_class(self) -> type:
         """The env class named by :attr:`entry_point` (imported on first use)."""
@@ -146,7 +149,7 @@ def register_system(system: System) -> System:
             module is not named :attr:`System.name`; a benchmark scenario the env does not
             have; its physics module without ``STATE_UNITS`` / ``CONTROL_UNITS`` matching its
             names; ``max_episode_steps < 1``; ``position_dims`` outside ``[0, n]``; a
-            ``data_start`` of the wrong shape.
+            ``data_start`` or ``perturbation`` of the wrong length.
     """
     old = _SYSTEMS.get(system.name)
     if old is not None:
@@ -180,9 +183,11 @@ def register_system(system: System) -> System:
     if not 0 <= system.position_dims <= n:
         raise ValueError(f"system {system.name!r}: position_dims must be in [0, {n}], "
                          f"got {system.position_dims}")
-    if system.data_start is not None and len(system.data_start) != n:
-        raise ValueError(f"system {system.name!r}: data_start must have {n} components, "
-                         f"got {len(system.data_start)}")
+    for field in ("data_start", "perturbation"):
+        value = getattr(system, field)
+        if value is not None and len(value) != n:
+            raise ValueError(f"system {system.name!r}: {field} must have {n} components, "
+                             f"got {len(value)}")
     if system.env_id not in registry:
         register(id=system.env_id, entry_point=system.entry_point,
                  max_episode_steps=int(system.max_episode_steps))

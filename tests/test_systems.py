@@ -161,7 +161,8 @@ def test_registration_refuses_inconsistent_systems(user_system):
     for change, message in [({"benchmark_scenarios": ("nope",)}, "not scenarios"),
                             ({"max_episode_steps": 0}, "max_episode_steps"),
                             ({"position_dims": 3}, "position_dims"),
-                            ({"data_start": (0.0,)}, "data_start")]:
+                            ({"data_start": (0.0,)}, "data_start"),
+                            ({"perturbation": (0.1, 0.1, 0.1)}, "perturbation")]:
         with pytest.raises(ValueError, match=message):
             register_system(System(**{**base.__dict__, **change}))
         assert "pointmass" not in SYSTEMS and "user/PointMass-v0" not in gym.registry

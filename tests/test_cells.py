@@ -1,0 +1,97 @@
+"""The robustness envelope's trial cells (benchmarks.trial.Cell): names, data, starts."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import gp_envs
+from benchmarks.controllers import make_env
+from benchmarks.trial import Cell, TrialSpec, _data_env, _start_options
+
+
+def test_the_default_cell_keeps_existing_trial_names_and_round_trips():
+    spec = TrialSpec("episode", "cartpole", "online", "ssgp-mpc", 3)
+    assert spec.key == "episode_cartpole_online_ssgp-mpc_s3"
+    varied = TrialSpec("episode", "cartpole", "online", "ssgp-mpc", 3,
+                       cell=Cell(randomize=0.1, data="diff", noise=0.005, start="perturbed",
+                                 kappa=2.0))
+    assert varied.key == ("episode_cartpole_online_ssgp-mpc_s3_r0.1_ddiff_noise0.005_"
+                          "perturbed_k2")
+    assert TrialSpec(**varied.to_dict()) == varied  # as the runner rebuilds it from a file
+    assert Cell().describe() == "fixed truth"
+    assert "randomize 0.1, diff data" in varied.cell.describe()
+
+
+@pytest.mark.parametrize(("kwargs", "message"), [
+    ({"data": "other"}, "data"), ({"start": "random"}, "start"), ({"randomize": -0.1}, "randomize"),
+    ({"noise": float("nan")}, "noise"), ({"kappa": -1.0}, "kappa")])
+def test_bad_cells_are_refused(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        Cell(**kwargs)
+
+
+def _truth(env):
+    return dict(gp_envs.oracle_model(env).params)
+
+
+def test_same_data_come_from_the_episodes_truth_and_diff_data_from_another_draw():
+    spec = TrialSpec("episode", "cartpole", "online", "ssgp-mpc", 7, cell=Cell(randomize=0.1))
+    env = make_env("cartpole", "online", randomize=0.1)
+    env.reset(seed=7)
+    episode_truth = _truth(env)
+    same = _data_env(env, spec)
+    same.reset(seed=12345)  # any data reset: the truth is fixed to the episode's draw
+    assert _truth(same) == pytest.approx(episode_truth)
+    diff_spec = TrialSpec("episode", "cartpole", "online", "ssgp-mpc", 7,
+                          cell=Cell(randomize=0.1, data="diff"))
+    diff = _data_env(env, diff_spec)
+    diff.reset(seed=12345)
+    other = _truth(diff)
+    assert other != pytest.approx(episode_truth)
+    for name, value in other.items():  # a draw of the same spread
+        assert abs(value / gp_envs.get_system("cartpole").env_class().SCENARIOS[
+            "online"].true[name] - 1) <= 0.1 + 1e-12
+    assert _data_env(make_env("cartpole", "online"), TrialSpec(
+        "episode", "cartpole", "online", "ssgp-mpc", 7)) is None  # fixed truth: the env itself
+
+
+def test_data_for_a_time_varying_episode_come_from_the_system_before_its_change():
+    spec = TrialSpec("episode", "quadrotor", "online-payload", "ssgp-mpc", 0)
+    env = make_env("quadrotor", "online-payload")
+    data_env = _data_env(env, spec)
+    data_env.reset(seed=0)
+    hover = np.full(4, data_env.unwrapped.nominal_model.task.u_ref[0], np.float32)
+    for _ in range(100):  # past the 3 s change
+        data_env.step(hover)
+    assert _truth(data_env)["m"] == pytest.approx(1.0)
+
+
+def test_perturbed_starts_are_seeded_offsets_within_the_stated_widths():
+    env = make_env("cartpole", "online")
+    spec = TrialSpec("episode", "cartpole", "online", "nominal-mpc", 4,
+                     cell=Cell(start="perturbed"))
+    a = _start_options(env, spec)["state"]
+    b = _start_options(env, spec)["state"]
+    np.testing.assert_array_equal(a, b)
+    env.reset(seed=4)
+    offset = a - gp_envs.oracle_state(env)
+    assert np.all(np.abs(offset) <= np.array(gp_envs.get_system("cartpole").perturbation))
+    assert np.abs(offset[0]) > 0.0
+    c = _start_options(env, TrialSpec("episode", "cartpole", "online", "nominal-mpc", 5,
+                                      cell=Cell(start="perturbed")))["state"]
+    assert not np.allclose(a, c)
+    assert _start_options(env, TrialSpec("episode", "cartpole", "online", "nominal-mpc", 4)
+                          ) is None
+
+
+def test_a_system_without_perturbation_widths_has_no_perturbed_start(monkeypatch):
+    import dataclasses
+
+    import benchmarks.trial as trial
+
+    bare = dataclasses.replace(gp_envs.get_system("cartpole"), perturbation=None)
+    monkeypatch.setattr(trial, "get_system", lambda name: bare)
+    with pytest.raises(ValueError, match="no perturbation widths"):
+        _start_options(make_env("cartpole", "online"), TrialSpec(
+            "episode", "cartpole", "online", "nominal-mpc", 4, cell=Cell(start="perturbed")))
