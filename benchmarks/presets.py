@@ -12,7 +12,7 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 from benchmarks.controllers import CONTROLLERS, ENVS, check_env_scenario, check_name
-from benchmarks.trial import TrialSpec
+from benchmarks.trial import Cell, TrialSpec
 
 MPC_BASES = ("nominal", "gp", "ssgp", "oracle")
 """The four model variants of the paper's tables, in the tables' order."""
@@ -268,6 +268,60 @@ def pendulum(seeds: Sequence[int] = tuple(range(1, 11))) -> Experiment:
         ("summary", "trajectories", "step_times"))
 
 
+ROBUSTNESS_CONTROLLERS = ("nominal-mpc", "ssgp-mpc", "ssgp-mpc-linearized", "oracle-mpc")
+"""The controllers of the robustness envelope (the oracle is each cell's reference)."""
+ROBUSTNESS_SEEDS = tuple(range(200, 220))
+"""Evaluation seeds of the robustness preset: never used to tune anything (the issue's own
+diagnosis used 101-105; development uses 0-9)."""
+ROBUSTNESS_NOISE = 0.005
+"""Observation noise of the noisy cells: 5 mm, 5 mrad, 5 mm/s, 5 mrad/s standard deviation."""
+
+
+def robustness(seeds: Sequence[int] = ROBUSTNESS_SEEDS,
+               dubins_seeds: Sequence[int] = tuple(range(200, 250)),
+               n_inits: Sequence[int] = (50, 100, 200),
+               kappas: Sequence[float] = (0.0, 1.0, 2.0, 3.0)) -> Experiment:
+    """The online-learning envelope: randomized truth with the initial data from the system
+    controlled or from another draw, perturbed starts, measurement noise, time-varying truth,
+    fewer initial samples, and the Dubins uncertainty radius."""
+    randomized = [Cell(randomize=r, data=d) for r in (0.05, 0.1, 0.2) for d in ("same", "diff")]
+    noisy = Cell(noise=ROBUSTNESS_NOISE)
+    grid = [
+        ("cartpole", "online", [Cell(), *randomized, Cell(start="perturbed"), noisy], seeds),
+        ("cartpole", "online-wear", [Cell()], seeds),
+        ("quadrotor", "online", [Cell(), Cell(randomize=0.1), Cell(randomize=0.1, data="diff"),
+                                 Cell(start="perturbed"), noisy], seeds),
+        ("quadrotor", "online-payload", [Cell()], seeds),
+        ("dubins", "paper", [Cell(), Cell(randomize=0.1), Cell(randomize=0.1, data="diff"),
+                             noisy], dubins_seeds),
+        ("dubins", "paper-wear", [Cell()], dubins_seeds),
+    ]
+    specs = tuple(TrialSpec("episode", env, scenario, c, s, cell=cell)
+                  for env, scenario, cells, env_seeds in grid for cell in cells
+                  for c in ROBUSTNESS_CONTROLLERS for s in env_seeds)
+    specs += tuple(TrialSpec("episode", env, scenario, "ssgp-mpc", s, n_init=n)
+                   for env, scenario, env_seeds in (("cartpole", "online", seeds),
+                                                    ("quadrotor", "online", seeds),
+                                                    ("dubins", "paper", dubins_seeds))
+                   for n in n_inits for s in env_seeds)
+    kappa_cells = [Cell(randomize=0.1), Cell(noise=ROBUSTNESS_NOISE)]
+    specs += tuple(TrialSpec("episode", "dubins", "paper", "ssgp-mpc", s, n_init=n,
+                             cell=Cell(randomize=cell.randomize, noise=cell.noise, kappa=k))
+                   for k in kappas for cell in kappa_cells for n in (50, 200)
+                   for s in dubins_seeds)
+    return Experiment(
+        "robustness", "Online learning across the envelope",
+        "Nominal, SSGP (GP in the NLP, and linearized) and oracle MPC on randomized truth "
+        "(spread 0.05, 0.1, 0.2; initial data from the system controlled, *same*, or from an "
+        "independent draw, *diff*), perturbed starts, observation noise "
+        f"({ROBUSTNESS_NOISE:g} per component), and the time-varying scenarios (cart pole "
+        "`online-wear`: damping doubles at 3 s; quadrotor `online-payload`: +20% mass at "
+        "3 s; Dubins `paper-wear`: losses 1.5x at 5 s, 2x at 10 s); the SSGP-MPC with 50, "
+        "100 and 200 initial samples; the Dubins SSGP-MPC against the uncertainty radius "
+        "kappa. Evaluation seeds 200-219 (Dubins 200-249), never used for tuning.",
+        specs, ("robustness", "summary"))
+
+
 def quick() -> Experiment:
     """A couple of minutes: the main controllers on every env, one or two seeds."""
     ssgp = ("ssgp-mpc", "ssgp-mpc-linearized")
@@ -312,6 +366,8 @@ PRESETS: dict[str, Preset] = {
                          "(not part of full)", (linearized(),)),
     "pendulum": Preset("pendulum", "the fourth system, added in one file (not part of full)",
                        (pendulum(),)),
+    "robustness": Preset("robustness", "online learning across randomized, noisy and "
+                         "time-varying systems (long; not part of full)", (robustness(),)),
     "rti": Preset("rti", "real-time iteration vs converged MPC, with the peers comparison "
                   "(not part of full)", (rti(), peers())),
     "full": Preset("full", "everything: all experiments above except quick",

@@ -39,12 +39,12 @@ from benchmarks.controllers import CONTROLLERS, ENVS, MODELS_DIR
 from benchmarks.presets import MPC_BASES, Experiment, Preset
 from benchmarks.runner import load_arrays, load_record, trial_path
 from benchmarks.styles import EPISODIC, RTI, Style, axis_label, style
-from benchmarks.trial import STATUS_OK, STATUS_UNAVAILABLE, TrialSpec
+from benchmarks.trial import STATUS_OK, STATUS_UNAVAILABLE, Cell, TrialSpec
 
 METRIC_COLUMNS = (
-    "key", "env", "scenario", "controller", "family", "mode", "seed", "status", "success",
-    "success_held", "at_goal_final", "time_to_success_s", "cost", "final_distance",
-    "final_position_error", "violations", "termination", "steps", "data_steps",
+    "key", "env", "scenario", "cell", "controller", "family", "mode", "seed", "status",
+    "success", "success_held", "at_goal_final", "time_to_success_s", "cost", "final_distance",
+    "final_position_error", "recovery_s", "violations", "termination", "steps", "data_steps",
     "act_median_ms", "act_p95_ms", "act_max_ms", "solver_failures", "fallbacks", "solves",
     "capped_solves", "plan_plant_defect", "build_s", "episode_s", "max_steps", "message",
 )
@@ -52,10 +52,13 @@ TIME_COLUMNS = ("act_median_ms", "act_p95_ms", "act_max_ms", "build_s", "episode
 """The columns of ``metrics.csv`` that are wall-clock times: the only ones a run's machine load
 may change (the controllers are capped by iterations, never by time)."""
 SUMMARY_COLUMNS = (
-    "experiment", "env", "scenario", "controller", "label", "status", "episodes", "success_rate",
+    "experiment", "env", "scenario", "cell", "n_init", "controller", "label", "status",
+    "episodes",
+    "success_rate",
     "success_ci_low", "success_ci_high", "cost_mean", "cost_ci_low", "cost_ci_high", "cost_std",
     "cost_median", "time_to_success_mean_s", "final_distance_mean",
-    "final_position_error_mean", "final_position_error_max", "violations_total",
+    "final_position_error_mean", "final_position_error_max", "recovery_max_s", "recovered",
+    "violations_total",
     "episodes_with_violation", "data_steps_mean", "act_median_ms", "act_p95_ms", "act_max_ms",
     "solver_failures", "fallbacks", "success_held_rate", "plan_plant_defect_max",
     "solve_median_ms", "outside_median_ms",
@@ -276,7 +279,8 @@ def metric_rows(trials: Iterable[Trial]) -> list[dict[str, Any]]:
         recipe = CONTROLLERS[t.spec.controller]
         row: dict[str, Any] = {
             "key": t.spec.key, "env": t.spec.env, "scenario": t.spec.scenario,
-            "controller": t.spec.controller, "family": recipe.family,
+            "cell": t.spec.cell.describe(), "controller": t.spec.controller,
+            "family": recipe.family,
             "mode": recipe.mode if recipe.family == "mpc" else "policy", "seed": t.spec.seed,
             "status": "not available" if t.status == STATUS_UNAVAILABLE else t.status,
             "max_steps": t.spec.max_steps if t.spec.max_steps is not None else "",
@@ -290,13 +294,15 @@ def metric_rows(trials: Iterable[Trial]) -> list[dict[str, Any]]:
 
 
 def summarize(experiment: str, trials: Sequence[Trial]) -> list[dict[str, Any]]:
-    """Per (env, scenario, controller) aggregates over the episode trials of an experiment."""
-    groups: dict[tuple[str, str, str], list[Trial]] = defaultdict(list)
+    """Per (env, scenario, cell, controller) aggregates over the episode trials of an
+    experiment."""
+    groups: dict[tuple[str, str, Cell, int, str], list[Trial]] = defaultdict(list)
     for t in trials:
         if t.spec.kind == "episode":
-            groups[(t.spec.env, t.spec.scenario, t.spec.controller)].append(t)
+            groups[(t.spec.env, t.spec.scenario, t.spec.cell, t.spec.n_init,
+                    t.spec.controller)].append(t)
     rows = []
-    for (env, scenario, controller), group in groups.items():
+    for (env, scenario, cell, n_init, controller), group in groups.items():
         ok = [t for t in group if t.ok]
         statuses = {t.status for t in group}
         if ok:
@@ -322,7 +328,8 @@ def summarize(experiment: str, trials: Sequence[Trial]) -> list[dict[str, Any]]:
         cost_ci = mean_ci(costs)
         rows.append({
             "experiment": experiment, "env": env, "scenario": scenario,
-            "controller": controller, "label": _label(controller), "status": status,
+            "cell": cell.describe(), "n_init": n_init, "controller": controller,
+            "label": _label(controller), "status": status,
             "episodes": len(ok),
             "success_rate": _mean([float(x["success"]) for x in m]),
             "success_ci_low": success_ci[0], "success_ci_high": success_ci[1],
@@ -336,6 +343,8 @@ def summarize(experiment: str, trials: Sequence[Trial]) -> list[dict[str, Any]]:
             "final_distance_mean": _mean([x["final_distance"] for x in m]),
             "final_position_error_mean": _mean([x["final_position_error"] for x in m]),
             "final_position_error_max": _max_finite(x["final_position_error"] for x in m),
+            "recovery_max_s": _max_finite(x.get("recovery_s", math.nan) for x in m),
+            "recovered": int(sum(np.isfinite(x.get("recovery_s", math.nan)) for x in m)),
             "violations_total": int(sum(x["violations"] for x in m)),
             "episodes_with_violation": int(sum(x["violations"] > 0 for x in m)),
             "data_steps_mean": _mean([x["data_steps"] for x in m]),
@@ -379,8 +388,9 @@ def section_summary(ctx: Context, exp: Experiment) -> list[str]:
               "data steps", "act median / p95 / max (ms)", "solver fails / fallbacks", "status"]
     body = []
     for r in rows:
+        cell = "" if r["cell"] == "fixed truth" else f", {r['cell']}"
         body.append([
-            f"{r['env']} `{r['scenario']}`", r["label"], r["episodes"],
+            f"{r['env']} `{r['scenario']}`{cell}", r["label"], r["episodes"],
             f"{_fmt(r['success_rate'])} {_interval(r['success_ci_low'], r['success_ci_high'])}",
             f"{_fmt(r['cost_mean'])} {_interval(r['cost_ci_low'], r['cost_ci_high'])}",
             r["time_to_success_mean_s"],
@@ -992,6 +1002,65 @@ def _linearization_errors(ctx: Context, exp: Experiment) -> list[str]:
             "1e-3, per output; <= 1 is within it), over all solves:", "", *table]
 
 
+def section_robustness(ctx: Context, exp: Experiment) -> list[str]:
+    """Success per cell of the envelope, each learning MPC's as a share of the oracle's."""
+    rows = ctx.summaries[exp.name]
+    controllers = list(dict.fromkeys(r["controller"] for r in rows))
+    cells: dict[tuple[str, str, str, int], dict[str, dict[str, Any]]] = defaultdict(dict)
+    for r in rows:
+        cells[(r["env"], r["scenario"], r["cell"], r["n_init"])][r["controller"]] = r
+    learners = [c for c in controllers if CONTROLLERS[c].learner is not None]
+    header = ["env", "scenario", "cell", "initial samples", *[_label(c) for c in controllers],
+              *[f"{_label(c)} / oracle" for c in learners if "oracle-mpc" in controllers],
+              "episodes with violation", "max final pos. err. (m)", "recovered / max (s)"]
+    body = []
+    for (env, scenario, cell, n_init), by in cells.items():
+        line: list[Any] = [env, f"`{scenario}`", cell, n_init]
+        for c in controllers:
+            r = by.get(c)
+            line.append("" if r is None or not r["episodes"] else
+                        f"{r['success_rate'] * r['episodes']:.0f}/{r['episodes']} "
+                        f"{_interval(r['success_ci_low'], r['success_ci_high'])}")
+        oracle = by.get("oracle-mpc")
+        for c in learners:
+            if "oracle-mpc" not in controllers:
+                break
+            r = by.get(c)
+            line.append(_fmt(r["success_rate"] / oracle["success_rate"])
+                        if r and oracle and oracle["success_rate"] else "")
+        present = [by[c] for c in controllers if c in by and by[c]["episodes"]]
+        line.append(", ".join(f"{_label(r['controller'])} {r['episodes_with_violation']}"
+                              for r in present if r["episodes_with_violation"]) or "0")
+        line.append(", ".join(f"{_label(r['controller'])} {_fmt(r['final_position_error_max'], 3)}"
+                              for r in present if np.isfinite(r["final_position_error_max"]))
+                    or "n/a")
+        line.append(", ".join(f"{_label(r['controller'])} {r['recovered']}/{r['episodes']}, "
+                              f"{_fmt(r['recovery_max_s'])}"
+                              for r in present if _time_varying(r)) or "n/a")
+        body.append(line)
+    lines = ["", "Success per cell (episodes that hold the goal at the end / episodes, with "
+             "Wilson 95% intervals), the learning MPCs' success rate as a share of the "
+             "oracle's in the same cell, obstacle contacts, the largest final position error, "
+             "and in the time-varying scenarios how many episodes get back within "
+             "1 cm of the goal after the change and stay there, with the longest time it "
+             "took. Initial data: *same* = from the system then controlled, *diff* = from an "
+             "independent draw of the same spread.", ""]
+    lines += markdown_table(header, body, ["---"] * 3 + ["---:"] * (len(header) - 3))
+    return lines
+
+
+def _time_varying(row: dict[str, Any]) -> bool:
+    """Whether a summary row is of a time-varying scenario (it has recovery times to show)."""
+    return bool(_env_model_changes(row["env"], row["scenario"]))
+
+
+@functools.cache
+def _env_model_changes(env: str, scenario: str) -> tuple[Any, ...]:
+    from gp_envs.systems import get_system
+
+    return tuple(get_system(env).env_class().SCENARIOS[scenario].changes)
+
+
 SECTIONS: dict[str, SectionFn] = {
     "summary": section_summary,
     "paper_tables": section_paper_tables,
@@ -1003,6 +1072,7 @@ SECTIONS: dict[str, SectionFn] = {
     "update_time": section_update_time,
     "peers": section_peers,
     "acceptance": section_acceptance,
+    "robustness": section_robustness,
 }
 """Report sections by name (used by :class:`benchmarks.presets.Experiment`)."""
 

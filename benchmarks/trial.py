@@ -207,6 +207,7 @@ def run_episode(spec: TrialSpec) -> dict[str, Any]:
     k = get_system(spec.env).position_dims
     if k:
         position_error = float(np.linalg.norm(final[:k] - goal[:k]))
+    recovery = _recovery_time(env, spec, observations, times, goal)
     act = episode.act_times
     is_mpc = recipe.family == "mpc"
     episodic = is_mpc and recipe.mode == "episodic"
@@ -225,6 +226,7 @@ def run_episode(spec: TrialSpec) -> dict[str, Any]:
         "cost": episode.cost,
         "final_distance": float(info.get("distance_to_goal", np.nan)),
         "final_position_error": position_error,
+        "recovery_s": recovery,
         "violations": int(np.sum(violations)),
         "termination": termination,
         "steps": steps,
@@ -257,6 +259,33 @@ def run_episode(spec: TrialSpec) -> dict[str, Any]:
             arrays[f"diag_{name}"] = value
     env.close()
     return {"metrics": metrics, "arrays": arrays}
+
+
+RECOVERY_TOLERANCE = 0.01
+"""Position error (m) within which a time-varying episode counts as recovered."""
+
+
+def _recovery_time(env: Any, spec: TrialSpec, observations: np.ndarray, times: np.ndarray,
+                   goal: np.ndarray) -> float:
+    """Seconds from a time-varying scenario's first change until the position error (the
+    system's ``position_dims``) is below :data:`RECOVERY_TOLERANCE` for the rest of the episode;
+    NaN if it never is, or for a scenario without changes or a system without a position.
+
+    Args:
+        observations: (T + 1, n) observed states (t = 0 first). times: (T,) the time after
+            each step, s. goal: (n,) the goal state.
+    """
+    changes = env.unwrapped.SCENARIOS[spec.scenario].changes
+    k = get_system(spec.env).position_dims
+    if not changes or not k or spec.cell.noise:
+        return float("nan")
+    t = np.concatenate([[0.0], times])
+    err = np.linalg.norm(observations[:, :k] - goal[:k], axis=1)
+    outside = np.flatnonzero((err >= RECOVERY_TOLERANCE) | (t < changes[0].time))
+    if outside.size and outside[-1] == len(t) - 1:
+        return float("nan")
+    first_in = outside[-1] + 1 if outside.size else 0
+    return float(t[first_in] - changes[0].time)
 
 
 def _start_options(env: Any, spec: TrialSpec) -> dict[str, Any] | None:

@@ -95,3 +95,44 @@ def test_a_system_without_perturbation_widths_has_no_perturbed_start(monkeypatch
     with pytest.raises(ValueError, match="no perturbation widths"):
         _start_options(make_env("cartpole", "online"), TrialSpec(
             "episode", "cartpole", "online", "nominal-mpc", 4, cell=Cell(start="perturbed")))
+
+
+def _trial(spec: TrialSpec, **metrics):
+    from pathlib import Path
+
+    from benchmarks.report import Trial
+
+    m = {"family": "mpc", "mode": "receding", "success": True, "success_held": True,
+         "time_to_success_s": 1.0, "cost": 10.0, "final_distance": 0.1,
+         "final_position_error": float("nan"), "violations": 0, "data_steps": 5,
+         "solver_failures": 0, "fallbacks": 0}
+    m.update(metrics)
+    return Trial(spec, Path("/nonexistent"), {"status": "ok", "metrics": m},
+                 _arrays={"act_time": np.full(3, 1e-3)})
+
+
+def test_the_robustness_section_reports_each_cell_against_the_oracle():
+    from pathlib import Path
+
+    from benchmarks.presets import Experiment
+    from benchmarks.report import Context, section_robustness, summarize
+
+    cell = Cell(randomize=0.1, data="diff")
+    trials = [_trial(TrialSpec("episode", "cartpole", "online", c, s, cell=cell), success=ok)
+              for s in range(4)
+              for c, ok in (("nominal-mpc", False), ("ssgp-mpc", s < 3), ("oracle-mpc", True))]
+    trials += [_trial(TrialSpec("episode", "quadrotor", "online-payload", "ssgp-mpc", s),
+                      final_position_error=0.004 * (s + 1), recovery_s=[0.5, float("nan")][s])
+               for s in range(2)]
+    trials += [_trial(TrialSpec("episode", "dubins", "paper", "ssgp-mpc", 0), violations=2)]
+    exp = Experiment("robustness", "t", "d", tuple(t.spec for t in trials), ("robustness",))
+    ctx = Context(Path("/nonexistent"), {t.spec: t for t in trials},
+                  {"robustness": summarize("robustness", trials)}, [], [])
+    lines = section_robustness(ctx, exp)
+    cart = next(line for line in lines if line.startswith("| cartpole"))
+    assert "randomize 0.1, diff data" in cart and "0/4" in cart and "3/4" in cart
+    assert "| 0.75 |" in cart  # SSGP's success as a share of the oracle's
+    quad = next(line for line in lines if line.startswith("| quadrotor"))
+    assert "0.008" in quad and "1/2, 0.50" in quad  # largest error; recovered 1 of 2
+    dubins = next(line for line in lines if line.startswith("| dubins"))
+    assert "SSGP MPC 1" in dubins  # one episode with obstacle contact
