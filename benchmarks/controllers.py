@@ -208,7 +208,9 @@ def check_name(kind: str, name: str, valid: Any) -> None:
 def check_env_scenario(env: str, scenario: str) -> None:
     """Raise :class:`UnknownNameError` for an unknown env or a scenario it does not have."""
     check_name("env", env, list(ENVS))
-    check_name(f"scenario of {env}", scenario, list(ENVS[env].scenarios))
+    if scenario not in ENVS[env].scenarios:
+        raise UnknownNameError(f"unknown scenario {scenario!r} of env {env}; valid scenarios of "
+                               f"{env}: {', '.join(ENVS[env].scenarios)}")
 
 
 @dataclass
