@@ -26,8 +26,9 @@ Real-time-iteration variants (:data:`RTI_VARIANTS`, preset ``rti``): ``nominal-m
 ``oracle-mpc-rti``, ``ssgp-mpc-rti`` (``scheme="rti"``; the SSGP one with the GP linearized).
 
 RL recipes load the shipped stable-baselines3 policies from ``benchmarks/models/<env>/<algo>/``
-(:class:`gp_agents.rl.RLAgent`); a missing model (or one trained for another scenario) makes the
-controller *unavailable* for that env, which the runner records instead of crashing.
+(:class:`gp_agents.rl.RLAgent`; package data, so a non-editable install has them); a missing
+model (or one trained for another scenario) makes the controller *unavailable* for that env,
+which the runner records instead of crashing.
 """
 
 from __future__ import annotations
@@ -42,7 +43,8 @@ import gp_envs
 from gp_agents.mpc import GPInNLP
 
 MODELS_DIR = Path(__file__).resolve().parent / "models"
-"""Where the shipped RL policies live: ``<env short name>/<algo>/``."""
+"""Where the shipped RL policies live: ``<env short name>/<algo>/`` inside the installed package
+(``[tool.setuptools.package-data]`` in ``pyproject.toml`` ships them)."""
 
 N_INITIAL_POINTS = 200
 """Initial transitions collected for the learning MPCs (paper: 200 points)."""
