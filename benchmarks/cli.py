@@ -126,7 +126,9 @@ def build_parser() -> _Parser:
         prog="gp-bench", description="Run controllers x envs x scenarios x seeds through "
         "gym.make and agent.act; write trajectories, metrics, plots and a Markdown report.",
         epilog="Presets: " + ", ".join(PRESETS) + ". Controllers: " + ", ".join(CONTROLLERS)
-        + ". Envs: " + ", ".join(ENVS) + ".")
+        + ". Envs: " + ", ".join(ENVS) + ". Exit status: 0 done, 1 some trial failed (see "
+        "metrics.csv), 2 usage error or no Dask scheduler/worker (one line on stderr), 130 "
+        "interrupted; finished trials are always kept.")
     p.add_argument("--preset", help="named preset (default: quick, unless --controllers is "
                    "given); see --list-presets")
     p.add_argument("--quick", dest="preset", action="store_const", const="quick",
@@ -143,8 +145,8 @@ def build_parser() -> _Parser:
     p.add_argument("--max-steps", type=_number(int, 1, "an integer >= 1"),
                    help="stop every episode after this many steps (smoke runs; stored as "
                    "different trials)")
-    p.add_argument("--out", type=Path, help=f"results directory (default: {RESULTS_DIR}/<preset "
-                   "or 'custom'> under the current directory)")
+    p.add_argument("--out", type=Path, help=f"results directory (default: ./{RESULTS_DIR}/<preset "
+                   "or 'custom'>, under the current directory)")
     p.add_argument("--workers", type=_number(int, 0, "an integer >= 0"), default=1,
                    help="parallel trial processes (default 1; 0 runs in this process; with "
                    "--scheduler local: Dask workers)")
@@ -162,7 +164,8 @@ def build_parser() -> _Parser:
                    "none (default 8): a trial exceeding it is recorded as an error instead of "
                    "exhausting a shared machine")
     p.add_argument("--report-only", action="store_true", help="only rebuild the report from the "
-                   "trial files already written")
+                   "trial files already written (give the run's --preset/--controllers/... and "
+                   "--out)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--list-presets", action="store_true", help="list presets and exit")
     p.add_argument("--list-controllers", action="store_true", help="list controllers, envs and "
