@@ -4,6 +4,8 @@ VENV := .venv
 PY := $(VENV)/bin/python
 export OMP_NUM_THREADS ?= 1
 
+# The committed reports live in benchmarks/results/<preset> (update_readme reads them there);
+# gp-bench's own default is ./benchmark-results/<preset>, so these targets pass --out.
 .PHONY: bench bench-full bench-acceptance bench-linearized bench-rti test throughput clean
 
 $(VENV)/.installed: pyproject.toml
@@ -15,23 +17,23 @@ $(VENV)/.installed: pyproject.toml
 	touch $@
 
 bench: $(VENV)/.installed
-	$(PY) -m benchmarks --preset quick
+	$(PY) -m benchmarks --preset quick --out benchmarks/results/quick
 	$(PY) -m benchmarks.update_readme quick
 
 bench-full: $(VENV)/.installed  # every experiment (paper tables, Dubins, sample efficiency, compute, peers, acceptance)
-	$(PY) -m benchmarks --preset full --workers 2
+	$(PY) -m benchmarks --preset full --workers 2 --out benchmarks/results/full
 
 bench-acceptance: $(VENV)/.installed  # the paper's tables and the MPC acceptance runs, README tables
-	$(PY) -m benchmarks --preset paper-tables --workers 2
-	$(PY) -m benchmarks --preset mpc-acceptance --workers 2
+	$(PY) -m benchmarks --preset paper-tables --workers 2 --out benchmarks/results/paper-tables
+	$(PY) -m benchmarks --preset mpc-acceptance --workers 2 --out benchmarks/results/mpc-acceptance
 	$(PY) -m benchmarks.update_readme paper-tables mpc-acceptance
 
 bench-linearized: $(VENV)/.installed  # the linearized SSGP-MPC's acceptance runs (~9 min on 2 cores)
-	$(PY) -m benchmarks --preset linearized --workers 2
+	$(PY) -m benchmarks --preset linearized --workers 2 --out benchmarks/results/linearized
 	$(PY) -m benchmarks.update_readme linearized
 
 bench-rti: $(VENV)/.installed  # real-time iteration vs converged MPC, and the peers comparison
-	$(PY) -m benchmarks --preset rti --workers 2
+	$(PY) -m benchmarks --preset rti --workers 2 --out benchmarks/results/rti
 	$(PY) -m benchmarks.update_readme rti
 
 test: $(VENV)/.installed

@@ -9,8 +9,13 @@ Examples::
     python -m benchmarks --list-presets
 
 A run writes ``<out>/runs/<trial>.npz`` (one file per finished trial, written atomically),
-``metrics.csv``, ``summary.csv``, PNG figures and ``report.md``. Rerunning the same command
-skips finished trials, so an interrupted run resumes where it stopped.
+``metrics.csv``, ``summary.csv``, PNG figures and ``report.md``; ``<out>`` defaults to
+``./benchmark-results/<preset or 'custom'>`` under the current directory. Rerunning the same
+command skips finished trials, so an interrupted run resumes where it stopped.
+
+Misuse (unknown names, empty name lists, bad seeds or numbers, an unwritable ``--out``,
+``--report-only`` without results, an unreachable Dask scheduler, no Dask worker within
+``--worker-timeout``) prints one line ``gp-bench: error: ...`` on stderr and exits with status 2.
 """
 
 from __future__ import annotations
@@ -20,53 +25,110 @@ import contextlib
 import dataclasses
 import json
 import os
+import re
 import shlex
 import signal
 import sys
+import tempfile
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import NoReturn
 
 from benchmarks.controllers import CONTROLLERS, ENVS, UnknownNameError, check_name
 from benchmarks.presets import PRESETS, Preset, custom_experiment, get_preset
+from benchmarks.runner import (
+    DEFAULT_CONNECT_TIMEOUT_S,
+    DEFAULT_WORKER_TIMEOUT_S,
+    RUNS_DIR,
+    SchedulerError,
+    check_scheduler_address,
+    run_trials,
+    trial_path,
+)
 from benchmarks.trial import TrialSpec
 
-RESULTS_DIR = Path(__file__).resolve().parent / "results"
-"""Default parent of the results directories (``results/<preset>``)."""
+RESULTS_DIR = Path("benchmark-results")
+"""Default parent of the results directories, relative to the current directory
+(``benchmark-results/<preset>``): never inside the installed package. The repository's own
+committed reports live in ``benchmarks/results/<preset>``; the Makefile passes ``--out``."""
+
+
+_SEED_PART = re.compile(r"(\d+)(?:-(\d+))?")
 
 
 def parse_seeds(text: str) -> list[int]:
-    """``"0-4"`` -> [0, 1, 2, 3, 4]; ``"0,3,7"`` -> [0, 3, 7]; ranges and lists combine."""
+    """``"0-4"`` -> [0, 1, 2, 3, 4]; ``"0,3,7"`` -> [0, 3, 7]; ranges and lists combine.
+
+    Raises:
+        argparse.ArgumentTypeError: not a list of seeds >= 0 and ranges ``LO-HI``, ``LO <= HI``.
+    """
     seeds: list[int] = []
-    for part in text.split(","):
-        part = part.strip()
-        if not part:
-            continue
-        try:
-            if "-" in part[1:]:
-                lo, hi = part.split("-", 1) if not part.startswith("-") else (part, part)
-                seeds.extend(range(int(lo), int(hi) + 1))
-            else:
-                seeds.append(int(part))
-        except ValueError as err:
-            raise argparse.ArgumentTypeError(f"bad seed list {text!r}: use e.g. 0-4 or 0,2,5"
-                                             ) from err
-    if not seeds or any(s < 0 for s in seeds):
-        raise argparse.ArgumentTypeError(f"bad seed list {text!r}: need seeds >= 0")
+    for part in (p.strip() for p in text.split(",")):
+        match = _SEED_PART.fullmatch(part)
+        if match is None:
+            raise argparse.ArgumentTypeError(
+                f"bad seed {part!r} in {text!r}: use seeds >= 0 and ranges, e.g. 0-4 or 0,2,5")
+        lo = int(match[1])
+        hi = lo if match[2] is None else int(match[2])
+        if hi < lo:
+            raise argparse.ArgumentTypeError(f"empty seed range {part!r}: use LO-HI with LO <= HI")
+        seeds.extend(range(lo, hi + 1))
     return list(dict.fromkeys(seeds))
 
 
-def _names(text: str | None) -> list[str] | None:
-    return None if text is None else [t.strip() for t in text.split(",") if t.strip()]
+def _number(kind: type[int] | type[float], minimum: float, what: str
+            ) -> Callable[[str], int | float]:
+    """An argparse ``type``: ``kind(text)``, at least ``minimum`` (``what`` describes it)."""
+    def parse(text: str) -> int | float:
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not {what}") from None
+        if not value >= minimum:  # also rejects nan
+            raise argparse.ArgumentTypeError(f"{text!r} is not {what}")
+        return value
+
+    parse.__name__ = what  # argparse names the type in some messages
+    return parse
 
 
-def build_parser() -> argparse.ArgumentParser:
+def _names(text: str | None, option: str) -> list[str] | None:
+    """The comma-separated names of ``option`` (None when not given).
+
+    Raises:
+        ValueError: the option is given but names nothing (e.g. ``--controllers ""``).
+    """
+    if text is None:
+        return None
+    names = [t.strip() for t in text.split(",") if t.strip()]
+    if not names:
+        raise ValueError(f"{option} {text!r} names nothing: give comma-separated names "
+                         "(see --list-controllers)")
+    return names
+
+
+class _Parser(argparse.ArgumentParser):
+    """``argparse.ArgumentParser`` whose errors are one line on stderr (exit status 2)."""
+
+    def error(self, message: str) -> NoReturn:
+        """A usage error: print ``prog: error: message (see prog --help)``, exit status 2."""
+        self.fail(f"{message} (see {self.prog} --help)")
+
+    def fail(self, message: str) -> NoReturn:
+        """Print ``prog: error: message`` on stderr and exit with status 2."""
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def build_parser() -> _Parser:
     """The argument parser (also documents the CLI)."""
-    p = argparse.ArgumentParser(
+    p = _Parser(
         prog="gp-bench", description="Run controllers x envs x scenarios x seeds through "
         "gym.make and agent.act; write trajectories, metrics, plots and a Markdown report.",
         epilog="Presets: " + ", ".join(PRESETS) + ". Controllers: " + ", ".join(CONTROLLERS)
-        + ". Envs: " + ", ".join(ENVS) + ".")
+        + ". Envs: " + ", ".join(ENVS) + ". Exit status: 0 done, 1 some trial failed (see "
+        "metrics.csv), 2 usage error or no Dask scheduler/worker (one line on stderr), 130 "
+        "interrupted; finished trials are always kept.")
     p.add_argument("--preset", help="named preset (default: quick, unless --controllers is "
                    "given); see --list-presets")
     p.add_argument("--quick", dest="preset", action="store_const", const="quick",
@@ -80,19 +142,30 @@ def build_parser() -> argparse.ArgumentParser:
                    "default scenario for a custom grid)")
     p.add_argument("--seeds", type=parse_seeds, help="seeds, e.g. 0-4 or 0,2,5 (custom grid: "
                    "default 0; with a preset: a filter)")
-    p.add_argument("--max-steps", type=int, help="stop every episode after this many steps "
-                   "(smoke runs; stored as different trials)")
-    p.add_argument("--out", type=Path, help="results directory (default: "
-                   "benchmarks/results/<preset or 'custom'>)")
-    p.add_argument("--workers", type=int, default=1, help="parallel trial processes (default 1; "
-                   "0 runs in this process; with --scheduler local: Dask workers)")
+    p.add_argument("--max-steps", type=_number(int, 1, "an integer >= 1"),
+                   help="stop every episode after this many steps (smoke runs; stored as "
+                   "different trials)")
+    p.add_argument("--out", type=Path, help=f"results directory (default: ./{RESULTS_DIR}/<preset "
+                   "or 'custom'>, under the current directory)")
+    p.add_argument("--workers", type=_number(int, 0, "an integer >= 0"), default=1,
+                   help="parallel trial processes (default 1; 0 runs in this process; with "
+                   "--scheduler local: Dask workers)")
     p.add_argument("--scheduler", help="Dask scheduler address (tcp://host:8786) to submit "
                    "trials to an existing cluster, or 'local' for a LocalCluster")
-    p.add_argument("--max-memory-gb", type=float, default=8.0, help="memory limit of each "
-                   "local worker process in GiB, 0 for none (default 8): a trial exceeding it is "
-                   "recorded as an error instead of exhausting a shared machine")
+    p.add_argument("--connect-timeout", type=_number(float, 0.1, "a number of seconds >= 0.1"),
+                   default=DEFAULT_CONNECT_TIMEOUT_S, help="seconds to reach the --scheduler "
+                   f"before failing (default {DEFAULT_CONNECT_TIMEOUT_S:g})")
+    p.add_argument("--worker-timeout", type=_number(float, 0, "a number of seconds >= 0"),
+                   default=DEFAULT_WORKER_TIMEOUT_S, help="seconds a --scheduler run waits "
+                   "while no Dask worker is connected (it says so) before failing; 0 waits "
+                   f"forever (default {DEFAULT_WORKER_TIMEOUT_S:g}); finished trials are kept")
+    p.add_argument("--max-memory-gb", type=_number(float, 0, "a number of GiB >= 0"),
+                   default=8.0, help="memory limit of each local worker process in GiB, 0 for "
+                   "none (default 8): a trial exceeding it is recorded as an error instead of "
+                   "exhausting a shared machine")
     p.add_argument("--report-only", action="store_true", help="only rebuild the report from the "
-                   "trial files already written")
+                   "trial files already written (give the run's --preset/--controllers/... and "
+                   "--out)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--list-presets", action="store_true", help="list presets and exit")
     p.add_argument("--list-controllers", action="store_true", help="list controllers, envs and "
@@ -122,10 +195,14 @@ def resolve(args: argparse.Namespace) -> tuple[Preset, Path]:
     """The preset (possibly custom or filtered) and the output directory of parsed ``args``.
 
     Raises:
-        UnknownNameError: unknown preset, controller, env or scenario names.
+        UnknownNameError: unknown preset, controller, env or scenario names, or filters that
+            leave no trial.
+        ValueError: an option that names nothing (``--controllers ""``), or a malformed
+            ``--scheduler`` address.
     """
-    controllers, envs, scenarios = (_names(args.controllers), _names(args.envs),
-                                    _names(args.scenarios))
+    controllers, envs, scenarios = (_names(args.controllers, "--controllers"),
+                                    _names(args.envs, "--envs"),
+                                    _names(args.scenarios, "--scenarios"))
     for c in controllers or ():
         check_name("controller", c, list(CONTROLLERS))
     for e in envs or ():
@@ -133,8 +210,6 @@ def resolve(args: argparse.Namespace) -> tuple[Preset, Path]:
     valid_scenarios = sorted({s for e in ENVS.values() for s in e.scenarios})
     for s in scenarios or ():
         check_name("scenario", s, valid_scenarios)
-    if args.max_steps is not None and args.max_steps < 1:
-        raise ValueError("--max-steps must be >= 1")
     if args.preset is None and controllers is not None:
         exp = custom_experiment(controllers, envs or list(ENVS), scenarios, args.seeds or [0],
                                 args.max_steps)
@@ -146,8 +221,36 @@ def resolve(args: argparse.Namespace) -> tuple[Preset, Path]:
         if not preset.experiments:
             raise UnknownNameError("the filters leave no trial of preset "
                                    f"{args.preset or 'quick'!r}")
+    if args.scheduler is not None:
+        try:
+            check_scheduler_address(args.scheduler)
+        except SchedulerError as err:
+            raise ValueError(str(err)) from None
     out = args.out or RESULTS_DIR / preset.name
     return preset, out
+
+
+def _writable(out: Path) -> str | None:
+    """Why results cannot be written to ``out`` (created if missing), or None if they can."""
+    try:
+        (out / RUNS_DIR).mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=out / RUNS_DIR):
+            pass
+    except OSError as err:
+        return f"--out {out}: cannot write results there ({err.strerror or err})"
+    return None
+
+
+def _report_only_problem(out: Path, preset: Preset) -> str | None:
+    """Why ``--report-only`` has nothing to report in ``out``, or None."""
+    if not out.is_dir():
+        return (f"--report-only: results directory {out} does not exist; run without "
+                "--report-only first (or pass --out)")
+    if not any(trial_path(out, spec).is_file() for spec in preset.specs):
+        return (f"--report-only: no trial of {preset.name!r} in {out / RUNS_DIR}; run without "
+                "--report-only first, or pass the --preset/--controllers/... of the run that "
+                "wrote it")
+    return None
 
 
 def _list_presets() -> str:
@@ -180,9 +283,14 @@ def _terminate(signum: int, frame: object) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the CLI; returns the exit status (0 ok, 1 if some trial failed, 2 usage error)."""
+    """Run the CLI; returns the exit status (0 ok, 1 if some trial failed).
+
+    Usage errors, and errors that stop a run before it could do its work (an unwritable
+    ``--out``, an unreachable Dask scheduler, no Dask worker within ``--worker-timeout``), print
+    one line ``gp-bench: error: ...`` on stderr and exit with status 2 (``SystemExit``); an
+    interrupt exits with status 130. Finished trials are kept in every case.
+    """
     from benchmarks.report import write_report
-    from benchmarks.runner import run_trials
 
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser()
@@ -196,7 +304,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         preset, out = resolve(args)
     except (UnknownNameError, ValueError) as err:
-        parser.error(str(err))
+        parser.fail(str(err))
+    problem = _report_only_problem(out, preset) if args.report_only else None
+    if problem := problem or _writable(out):
+        parser.fail(problem)
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     with contextlib.suppress(ValueError):  # only possible in the main thread
         signal.signal(signal.SIGTERM, _terminate)  # finished trials are kept; see runner
@@ -204,9 +315,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     run_info: dict[str, object] = {"workers": args.workers, "scheduler": args.scheduler}
     status = 0
     if not args.report_only:
-        summary = run_trials(preset.specs, out, workers=args.workers, scheduler=args.scheduler,
-                             progress=not args.no_progress,
-                             max_memory_gb=args.max_memory_gb or None)
+        try:
+            summary = run_trials(preset.specs, out, workers=args.workers,
+                                 scheduler=args.scheduler, progress=not args.no_progress,
+                                 max_memory_gb=args.max_memory_gb or None,
+                                 connect_timeout=args.connect_timeout,
+                                 worker_timeout=args.worker_timeout or None)
+        except SchedulerError as err:
+            parser.fail(str(err))
+        except KeyboardInterrupt:
+            print(f"\ninterrupted: finished trials are kept in {out / RUNS_DIR}; rerun the same "
+                  "command to resume", file=sys.stderr)
+            return 130
         failed = summary.count("error")
         run_info.update(ran=len(summary.ran), skipped=len(summary.skipped))
         if failed:
@@ -214,7 +334,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             status = 1
     run_info["wall_s"] = time.perf_counter() - start
     command = _command(argv)
-    last = out / "runs" / "last_run.json"  # the report names the command that ran trials
+    last = out / RUNS_DIR / "last_run.json"  # the report names the command that ran trials
     if args.report_only:
         previous = json.loads(last.read_text()) if last.is_file() else {}
         command, run_info = previous.get("command", command), previous.get("run_info", {})

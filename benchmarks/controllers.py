@@ -26,8 +26,9 @@ Real-time-iteration variants (:data:`RTI_VARIANTS`, preset ``rti``): ``nominal-m
 ``oracle-mpc-rti``, ``ssgp-mpc-rti`` (``scheme="rti"``; the SSGP one with the GP linearized).
 
 RL recipes load the shipped stable-baselines3 policies from ``benchmarks/models/<env>/<algo>/``
-(:class:`gp_agents.rl.RLAgent`); a missing model (or one trained for another scenario) makes the
-controller *unavailable* for that env, which the runner records instead of crashing.
+(:class:`gp_agents.rl.RLAgent`; package data, so a non-editable install has them); a missing
+model (or one trained for another scenario) makes the controller *unavailable* for that env,
+which the runner records instead of crashing.
 """
 
 from __future__ import annotations
@@ -44,7 +45,8 @@ from gp_agents.mpc import GPInNLP
 from gp_envs.systems import SYSTEMS
 
 MODELS_DIR = Path(__file__).resolve().parent / "models"
-"""Where the shipped RL policies live: ``<env short name>/<algo>/``."""
+"""Where the shipped RL policies live: ``<env short name>/<algo>/`` inside the installed package
+(``[tool.setuptools.package-data]`` in ``pyproject.toml`` ships them)."""
 
 N_INITIAL_POINTS = 200
 """Initial transitions collected for the learning MPCs (paper: 200 points)."""
@@ -221,7 +223,9 @@ def check_name(kind: str, name: str, valid: Any) -> None:
 def check_env_scenario(env: str, scenario: str) -> None:
     """Raise :class:`UnknownNameError` for an unknown env or a scenario it does not have."""
     check_name("env", env, list(ENVS))
-    check_name(f"scenario of {env}", scenario, list(ENVS[env].scenarios))
+    if scenario not in ENVS[env].scenarios:
+        raise UnknownNameError(f"unknown scenario {scenario!r} of env {env}; valid scenarios of "
+                               f"{env}: {', '.join(ENVS[env].scenarios)}")
 
 
 @dataclass

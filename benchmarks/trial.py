@@ -13,6 +13,7 @@ unavailable controller ``status="unavailable"`` with the reason; the runner reco
 from __future__ import annotations
 
 import functools
+import importlib.metadata
 import os
 import subprocess
 import time
@@ -36,6 +37,9 @@ from benchmarks.controllers import (
 )
 from gp_agents.agent import rollout
 from gp_envs.systems import get_system
+
+DISTRIBUTION = "gp-pseudospectral-mpc"
+"""The distribution (``pip install`` name) of this package, for :func:`code_version`."""
 
 STATUS_OK = "ok"
 STATUS_ERROR = "error"
@@ -381,7 +385,9 @@ def cpu_model() -> str:
 @functools.cache
 def code_version() -> str:
     """Short git commit of the code that runs, with ``-dirty`` if tracked files under the
-    packages differ from it; ``"unknown"`` outside a git checkout."""
+    packages differ from it; outside a checkout of this repository (an installed package, even
+    in a virtual environment inside some other git repository) ``"v<package version>"``, or
+    ``"unknown"``."""
     root = Path(__file__).resolve().parent.parent
 
     def git(*args: str) -> str:
@@ -390,11 +396,16 @@ def code_version() -> str:
         return res.stdout.strip()
 
     try:
+        if Path(git("rev-parse", "--show-toplevel")).resolve() != root:
+            raise subprocess.SubprocessError("not a checkout of this repository")
         commit = git("rev-parse", "--short", "HEAD")
         dirty = git("status", "--porcelain", "--untracked-files=no", "--",
                     "gp_envs", "gp_agents", "benchmarks/*.py", "pyproject.toml")
     except (OSError, subprocess.SubprocessError):
-        return "unknown"
+        try:
+            return f"v{importlib.metadata.version(DISTRIBUTION)}"
+        except importlib.metadata.PackageNotFoundError:
+            return "unknown"
     return f"{commit}-dirty" if dirty else commit
 
 

@@ -1,6 +1,7 @@
 """Regenerate the README's results table(s) between ``<!-- results:NAME -->`` markers.
 
-Run: ``python -m benchmarks.update_readme quick`` after ``python -m benchmarks --preset quick``.
+Run: ``python -m benchmarks.update_readme quick`` after
+``python -m benchmarks --preset quick --out benchmarks/results/quick`` (``make bench``).
 A name ``DIR/EXPERIMENT`` (markers ``<!-- results:full/dubins -->``) takes the table of one
 experiment of ``benchmarks/results/DIR``; a bare ``DIR`` takes its first experiment.
 """

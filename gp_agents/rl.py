@@ -5,7 +5,7 @@ with, so it runs in the plain Gymnasium loop on the registered env exactly as ``
 returns it::
 
     env = gym.make("gp_envs/CartPoleSwingUp-v0", scenario="online")
-    agent = RLAgent.load("benchmarks/models/cartpole/sac", env)
+    agent = RLAgent.load("benchmarks/models/cartpole/sac", env)  # a shipped policy, from any cwd
     obs, _ = env.reset(seed=0)
     while True:
         a = agent.act(obs)
@@ -47,6 +47,11 @@ A saved agent is a directory::
                        hyperparameters, seed, training steps, wall-clock training time,
                        library versions
 
+The policies shipped with the package (``benchmarks/models/<env>/<algo>/``, installed as package
+data of ``benchmarks``) load by name from any directory, also from a non-editable install:
+``RLAgent.load("cartpole/sac", env)`` or the repository path
+``RLAgent.load("benchmarks/models/cartpole/sac", env)``; :func:`shipped_models` lists them.
+
 stable-baselines3 and torch are imported at the top of this module; the core package does not
 import it eagerly, so ``gp_envs``/``gp_agents`` work without the RL extra.
 """
@@ -54,6 +59,7 @@ import it eagerly, so ``gp_envs``/``gp_agents`` work without the RL extra.
 from __future__ import annotations
 
 import copy
+import importlib.resources
 import json
 import pickle
 from collections.abc import Mapping, Sequence
@@ -74,7 +80,8 @@ from gp_agents.agent import rollout as closed_loop
 
 __all__ = ["ALGORITHMS", "AngleFeatures", "BoundedShiftReward", "GoalBonusReward",
            "NormalizedAction", "RLAgent", "TimeFeature", "get_env_state", "make_training_vec_env",
-           "rollout", "set_env_state", "termination_terms", "wrap_env"]
+           "resolve_model_dir", "rollout", "set_env_state", "shipped_models",
+           "shipped_models_dir", "termination_terms", "wrap_env"]
 
 ALGORITHMS: dict[str, type[BaseAlgorithm]] = {"sac": SAC, "ppo": PPO}
 """Supported SB3 algorithms by lower-case name."""
@@ -590,20 +597,18 @@ class RLAgent:
         """Load a saved agent and check that it was trained for ``env``.
 
         Args:
-            path: directory written by :meth:`save` (or the ``model.zip`` inside it).
+            path: directory written by :meth:`save` (or the ``model.zip`` inside it), or the
+                name of a shipped policy (:func:`shipped_models`; see :func:`resolve_model_dir`).
             env: the env the agent will act in (made with ``gym.make``).
             deterministic: see :class:`RLAgent`.
 
         Raises:
-            FileNotFoundError: no saved agent at ``path``.
+            FileNotFoundError: no saved agent at ``path`` nor a shipped one of that name (the
+                message lists the shipped ones).
             ValueError: the agent was trained for another env id, scenario or spaces.
         """
-        d = Path(path)
-        if d.is_file():
-            d = d.parent
+        d = resolve_model_dir(path)
         meta_file = d / METADATA_FILE
-        if not meta_file.is_file() or not (d / MODEL_FILE).is_file():
-            raise FileNotFoundError(f"no saved RLAgent ({METADATA_FILE} + {MODEL_FILE}) in {d}")
         meta = json.loads(meta_file.read_text())
         cls._check_env(meta, env, d)
         algo = meta["algo"]
@@ -642,6 +647,69 @@ class RLAgent:
         return (f"RLAgent(algo={self.algo!r}, env_id={self.env_id!r}, scenario={self.scenario!r}, "
                 f"training_steps={self.training_steps}, seed={self.seed})")
 
+
+SHIPPED_MODELS_PACKAGE = "benchmarks"
+"""The package whose ``models/<env>/<algo>/`` directories hold the shipped RL policies (package
+data, so they are installed with it)."""
+
+
+def shipped_models_dir() -> Path | None:
+    """Directory of the shipped RL policies (``models/`` of :data:`SHIPPED_MODELS_PACKAGE`,
+    wherever that package is installed), or None if it is not importable or has none."""
+    try:
+        root = importlib.resources.files(SHIPPED_MODELS_PACKAGE)
+    except ModuleNotFoundError:
+        return None
+    models = Path(str(root)) / "models"  # an installed (not zipped) package: a real directory
+    return models if models.is_dir() else None
+
+
+def _is_saved_agent(d: Path) -> bool:
+    return (d / METADATA_FILE).is_file() and (d / MODEL_FILE).is_file()
+
+
+def shipped_models() -> list[str]:
+    """Names ``"<env>/<algo>"`` of the shipped RL policies, e.g. ``["cartpole/sac", ...]``."""
+    models = shipped_models_dir()
+    if models is None:
+        return []
+    return sorted(m.parent.relative_to(models).as_posix() for m in models.glob(f"*/*/{MODEL_FILE}")
+                  if _is_saved_agent(m.parent))
+
+
+def resolve_model_dir(path: str | Path) -> Path:
+    """The directory of the saved agent ``path`` names.
+
+    ``path`` is a directory written by :meth:`RLAgent.save` (or its ``model.zip``), absolute or
+    relative to the current directory. A relative path that holds no saved agent there but
+    names a shipped policy resolves to the installed copy, so the repository-relative
+    ``"benchmarks/models/cartpole/sac"`` (and the short ``"cartpole/sac"``) work from any
+    directory and in a non-editable install.
+
+    Raises:
+        FileNotFoundError: no saved agent at ``path`` and no shipped policy of that name; the
+            message lists the shipped policies.
+    """
+    d = Path(path)
+    if d.is_file() or (d.name == MODEL_FILE and not d.is_dir()):
+        d = d.parent
+    if _is_saved_agent(d):
+        return d
+    models = shipped_models_dir()
+    if not d.is_absolute() and models is not None:
+        parts = d.parts
+        for prefix in ((SHIPPED_MODELS_PACKAGE, "models"), ("models",)):
+            if parts[:len(prefix)] == prefix:
+                parts = parts[len(prefix):]
+                break
+        if parts and _is_saved_agent(models.joinpath(*parts)):
+            return models.joinpath(*parts)
+    where = d if d.is_absolute() else f"{d} (relative to {Path.cwd()})"
+    names = shipped_models()
+    shipped = (f"shipped policies: {', '.join(names)} (e.g. RLAgent.load({names[0]!r}, env))"
+               if names else f"no shipped policies found ({SHIPPED_MODELS_PACKAGE} package)")
+    raise FileNotFoundError(f"no saved RLAgent ({METADATA_FILE} + {MODEL_FILE}) in {where}; "
+                            f"{shipped}")
 
 
 def rollout(agent: RLAgent, env: gym.Env, seed: int) -> dict[str, Any]:
