@@ -198,7 +198,9 @@ def test_bounded_shift_changes_every_return_by_the_same_constant(env_id: str) ->
         if term:  # shifting the terminating step too would be off by one step's bound
             naive = r_plain + (t_max - k + 1) * dt * bound + k * dt * bound
             assert naive - r_plain != pytest.approx(shifted.return_offset)
-    assert ends == {True, False}
+    # the pendulum's torque (2.5 N m, under m g l) cannot reach its 20 rad/s guard: it never
+    # terminates, so only the other systems exercise the early-termination branch
+    assert ends == ({False} if env_id == "gp_envs/PendulumSwingUp-v0" else {True, False})
 
 
 def test_shifted_rewards_are_bounded() -> None:
