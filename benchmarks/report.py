@@ -1012,7 +1012,7 @@ def section_robustness(ctx: Context, exp: Experiment) -> list[str]:
     learners = [c for c in controllers if CONTROLLERS[c].learner is not None]
     header = ["env", "scenario", "cell", "initial samples", *[_label(c) for c in controllers],
               *[f"{_label(c)} / oracle" for c in learners if "oracle-mpc" in controllers],
-              "episodes with violation", "max final pos. err. (m)", "recovered / max (s)"]
+              "episodes with a violation", "max final pos. err. (m)", "recovered / max (s)"]
     body = []
     for (env, scenario, cell, n_init), by in cells.items():
         line: list[Any] = [env, f"`{scenario}`", cell, n_init]
@@ -1040,7 +1040,8 @@ def section_robustness(ctx: Context, exp: Experiment) -> list[str]:
         body.append(line)
     lines = ["", "Success per cell (episodes that hold the goal at the end / episodes, with "
              "Wilson 95% intervals), the learning MPCs' success rate as a share of the "
-             "oracle's in the same cell, obstacle contacts, the largest final position error, "
+             "oracle's in the same cell, episodes with a constraint violation (obstacle contact, "
+             "or leaving the state box: a crash), the largest final position error, "
              "and in the time-varying scenarios how many episodes get back within "
              "1 cm of the goal after the change and stay there, with the longest time it "
              "took. Initial data: *same* = from the system then controlled, *diff* = from an "
