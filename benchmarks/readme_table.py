@@ -54,7 +54,8 @@ def _cell(key: str, value: str, row: dict[str, str] | None = None) -> str:
 
 
 def readme_table(report_dir: Path, experiment: str | None = None) -> str:
-    """The Markdown table of one experiment of ``report_dir/summary.csv``.
+    """The Markdown table of one experiment of ``report_dir/summary.csv`` (rows of trials not
+    run yet left out; a *cell* and an *initial samples* column where the experiment varies them).
 
     Args:
         report_dir: a results directory written by ``python -m benchmarks``.
@@ -75,15 +76,21 @@ def readme_table(report_dir: Path, experiment: str | None = None) -> str:
     experiment = experiment or experiments[0]
     if experiment not in experiments:
         raise ValueError(f"unknown experiment {experiment!r}; present: {', '.join(experiments)}")
-    lines = ["| " + " | ".join(h for _, h in COLUMNS) + " |",
-             "|" + "|".join("---" if k in ("env", "scenario", "label") else "---:"
-                            for k, _ in COLUMNS) + "|"]
+    rows = [r for r in rows if r["experiment"] == experiment and r.get("status") != "missing"]
+    columns = list(COLUMNS)
+    # the robustness cells and initial-sample counts, where an experiment varies them
+    if any(r.get("cell", "fixed truth") != "fixed truth" for r in rows):
+        columns.insert(2, ("cell", "cell"))
+    if len({r.get("n_init") for r in rows}) > 1:
+        columns.insert(columns.index(("label", "controller")), ("n_init", "initial samples"))
+    lines = ["| " + " | ".join(h for _, h in columns) + " |",
+             "|" + "|".join("---" if k in ("env", "scenario", "label", "cell") else "---:"
+                            for k, _ in columns) + "|"]
     for r in rows:
-        if r["experiment"] != experiment:
-            continue
-        cells = [_cell(k, r[k], r) for k, _ in COLUMNS]
+        cells = [_cell(k, r[k], r) for k, _ in columns]
         if r["status"] == "not available":
-            cells = [*cells[:3], "not available", *["-"] * (len(COLUMNS) - 4)]
+            n = columns.index(("episodes", "episodes"))
+            cells = [*cells[:n], "not available", *["-"] * (len(columns) - n - 1)]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)
 

@@ -136,3 +136,27 @@ def test_the_robustness_section_reports_each_cell_against_the_oracle():
     assert "0.008" in quad and "1/2, 0.50" in quad  # largest error; recovered 1 of 2
     dubins = next(line for line in lines if line.startswith("| dubins"))
     assert "SSGP MPC 1" in dubins  # one episode with obstacle contact
+
+
+def test_readme_tables_show_cells_and_initial_samples_and_skip_trials_not_run(tmp_path):
+    import csv
+
+    from benchmarks.readme_table import readme_table
+
+    base = {"experiment": "robustness", "env": "cartpole", "scenario": "online",
+            "label": "SSGP MPC", "status": "ok", "episodes": "20", "success_rate": "0.5",
+            "success_ci_low": "0.3", "success_ci_high": "0.7", "cost_mean": "30",
+            "cost_ci_low": "25", "cost_ci_high": "35", "final_distance_mean": "0.1",
+            "episodes_with_violation": "0", "data_steps_mean": "320", "act_median_ms": "40"}
+    rows = [{**base, "cell": "fixed truth", "n_init": "200"},
+            {**base, "cell": "randomize 0.1, diff data", "n_init": "50"},
+            {**base, "cell": "noise 0.005", "n_init": "200", "status": "missing",
+             "episodes": "0"}]
+    with open(tmp_path / "summary.csv", "w", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    table = readme_table(tmp_path).splitlines()
+    assert table[0].startswith("| env | scenario | cell | initial samples | controller |")
+    assert len(table) == 4  # header, rule, two rows: the trials not run yet are left out
+    assert "| randomize 0.1, diff data | 50 | SSGP MPC |" in table[3]
