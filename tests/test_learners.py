@@ -502,3 +502,140 @@ def test_failed_update_leaves_state_intact(data, exact_gp):
         model.update(Z[60:61], Y[60:61] * 1e300)
     np.testing.assert_array_equal(model.cholesky_factor_, before[0])
     assert model.n_samples_seen_ == before[2]
+
+
+# ---------------------------------------------------------------------------- linear features
+def test_ssgp_nlml_linear_gradient_matches_finite_differences(data):
+    Z, Y, _, _ = data
+    Zs = (Z - Z.mean(0)) / Z.std(0)
+    y = (Y[:, 1] - Y[:, 1].mean()) / Y[:, 1].std()
+    theta = np.r_[np.log([0.7, 1.3, 2.0]), np.log(0.8), np.log(0.2), np.log(0.6)]
+    base = np.random.default_rng(3).standard_normal((3, 40))
+    fun = lambda t: ssgp_nlml(t, Zs, y, base, linear=True)  # noqa: E731
+    _, grad = fun(theta)
+    assert grad.shape == (6,)
+    fd = _central_diff(lambda t: fun(t)[0], theta)
+    np.testing.assert_allclose(grad, fd, rtol=1e-5, atol=1e-5)
+
+
+def test_ssgp_linear_features_match_dense_formula(data):
+    """Weight-space SSGP with the features [phi_SE(z); sigma_l z]: dense textbook formula."""
+    Z, Y, Zt, _ = data
+    hyp = _hyp(3, 2, ell=1.5, sf=0.8, sn=0.1)
+    model = SSGP(10, hyperparameters=hyp, linear_features=True, linear_std=0.7,
+                 random_state=1).fit(Z, Y)
+    std = model.standardizer_
+    Zs, Ys, Zts = std.transform_inputs(Z), std.transform_outputs(Y), std.transform_inputs(Zt)
+
+    def feats(X, j):
+        U = X @ (model.base_frequencies_[j] / hyp.length_scales[j][:, None])
+        return np.hstack([0.8 / np.sqrt(10) * np.cos(U), 0.8 / np.sqrt(10) * np.sin(U), 0.7 * X])
+
+    for j in range(2):
+        F = feats(Zs, j)
+        A = F.T @ F + 0.01 * np.eye(F.shape[1])
+        w = np.linalg.solve(A, F.T @ Ys[:, j])
+        Ft = feats(Zts, j)
+        mean = std.inverse_mean(np.c_[Ft @ w, Ft @ w])[:, j]
+        var = 0.01 * (1 + np.einsum("ij,ji->i", Ft, np.linalg.inv(A) @ Ft.T)) * std.y_std[j] ** 2
+        m, s = model.predict(Zt, return_std=True)
+        np.testing.assert_allclose(m[:, j], mean, rtol=1e-9, atol=1e-9)
+        np.testing.assert_allclose(s[:, j] ** 2, var, rtol=1e-8)
+    assert model.weights_.shape == (2, 23)
+
+
+def test_linear_features_extrapolate_linear_residual():
+    """A damping-like residual y = -3 v (plus a bump) learned on |v| <= 1: with linear features
+    the prediction at v = 4 is close to -12."""
+    rng = np.random.default_rng(0)
+    Z = rng.uniform(-1, 1, (150, 2))
+    Y = (-3.0 * Z[:, 0] + 0.3 * np.sin(3 * Z[:, 1]))[:, None] + 0.01 * rng.standard_normal((150, 1))
+    zq = np.array([[4.0, 0.0]])
+    kw = dict(forgetting_factor=1.0, random_state=0)
+    lin = IncrementalSSGP(30, linear_features=True, **kw).fit(Z, Y)
+    assert lin.linear_std_ is not None and lin.linear_std_.shape == (1,)
+    assert lin.predict(zq)[0, 0] == pytest.approx(-12.0, abs=1.0)
+
+
+@pytest.mark.parametrize(("lam", "m"), [(1.0, 1), (0.97, 1), (0.95, 100)], ids=str)
+def test_incremental_linear_equals_batch(lam, m, data, exact_gp):
+    Z, Y, Zt, _ = data
+    kw = dict(forgetting_factor=lam, prior_refresh=m, hyperparameters=exact_gp,
+              linear_features=True, linear_std=0.5, random_state=3)
+    model = IncrementalSSGP(15, **kw).fit(Z[:30], Y[:30])
+    i = 30
+    for p in (1, 7, 1, 25):
+        model.update(Z[i : i + p], Y[i : i + p])
+        i += p
+    model.update(Z[i:], Y[i:])
+    batch = IncrementalSSGP(15, **kw).fit(Z, Y)
+    assert model.weights_.shape == (2, 33)
+    expected = batch.predict(Zt)
+    np.testing.assert_allclose(model.predict(Zt), expected, rtol=1e-8,
+                               atol=1e-10 * np.abs(expected).max())
+    np.testing.assert_allclose(
+        model.predict(Zt, return_std=True)[1], batch.predict(Zt, return_std=True)[1], rtol=1e-8
+    )
+    # dense reference of the forgetting recursion over [phi_SE; sigma_l z]
+    std, hyp = model.standardizer_, model.hyperparameters_
+    Zs, Ys = std.transform_inputs(Z), std.transform_outputs(Y)
+    wts = lam ** np.arange(len(Z) - 1, -1, -1, dtype=float)
+    for j in range(2):
+        U = Zs @ model.omega_[j]
+        F = np.hstack([hyp.signal_std[j] / np.sqrt(15) * np.hstack([np.cos(U), np.sin(U)]),
+                       0.5 * Zs])
+        ages = _simulated_prior_ages(len(Z), F.shape[1], m)
+        A = F.T @ (wts[:, None] * F) + np.diag(hyp.noise_std[j] ** 2 * lam**ages)
+        w = np.linalg.solve(A, F.T @ (wts * Ys[:, j]))
+        np.testing.assert_allclose(model.weights_[j], w, rtol=1e-7, atol=1e-8 * np.abs(w).max())
+
+
+@pytest.mark.parametrize("sym", [ca.SX, ca.MX], ids=["SX", "MX"])
+def test_casadi_export_linear_features(sym, data):
+    Z, Y, Zt, _ = data
+    model = IncrementalSSGP(12, forgetting_factor=0.98, linear_features=True,
+                            n_restarts=0, random_state=2).fit(Z[:60], Y[:60])
+    P = model.casadi_param_size()
+    z, theta = sym.sym("z", 3), sym.sym("theta", P)
+    mean = model.casadi_mean(z, theta)
+    fn = ca.Function("gp", [z, theta], [mean, model.casadi_variance(z, theta),
+                                        ca.jacobian(mean, z)])
+
+    def check() -> None:
+        tv = model.casadi_param_values()
+        m, s = model.predict(Zt[:6], return_std=True)
+        G = model.predict_gradient(Zt[:6])
+        for n in range(6):
+            cm, cv, cj = (np.asarray(a) for a in fn(Zt[n], tv))
+            np.testing.assert_allclose(cm.ravel(), m[n], rtol=1e-10, atol=1e-10)
+            np.testing.assert_allclose(cv.ravel(), s[n] ** 2, rtol=1e-8, atol=1e-12)
+            np.testing.assert_allclose(cj, G[n], rtol=1e-8, atol=1e-9)
+
+    check()
+    model.update(Z[60:61], Y[60:61])
+    model.update(Z[61:], Y[61:])
+    assert model.casadi_param_size() == P
+    check()
+    # gradient against finite differences of predict
+    z0 = Zt[3]
+    step = [model.predict((z0 + 1e-6 * e)[None])[0] - model.predict((z0 - 1e-6 * e)[None])[0]
+            for e in np.eye(3)]
+    fd = np.stack(step, axis=1) / 2e-6
+    np.testing.assert_allclose(model.predict_gradient(z0[None])[0], fd, rtol=1e-5, atol=1e-6)
+
+
+def test_save_load_roundtrip_linear(tmp_path, data):
+    Z, Y, Zt, _ = data
+    model = IncrementalSSGP(12, forgetting_factor=0.98, linear_features=True, n_restarts=0,
+                            random_state=5).fit(Z[:50], Y[:50])
+    model.update(Z[50:80], Y[50:80])
+    path = tmp_path / "ssgp_linear.npz"
+    model.save(path)
+    loaded = IncrementalSSGP.load(path)
+    assert loaded.linear_features
+    np.testing.assert_array_equal(loaded.linear_std_, model.linear_std_)
+    np.testing.assert_array_equal(loaded.casadi_param_values(), model.casadi_param_values())
+    np.testing.assert_array_equal(model.predict(Zt), loaded.predict(Zt))
+    loaded.update(Z[80:], Y[80:])
+    model.update(Z[80:], Y[80:])
+    np.testing.assert_array_equal(model.predict(Zt), loaded.predict(Zt))

@@ -96,14 +96,17 @@ class HyperparameterBounds:
         length_scale: (low, high) for every ``ell``.
         signal_std: (low, high) for ``sigma_s``.
         noise_std: (low, high) for ``sigma_n``.
+        linear_std: (low, high) for ``sigma_l``, the prior std of the weights of an SSGP's
+            linear features (used only by learners with linear features).
     """
 
     length_scale: tuple[float, float] = (1e-2, 1e2)
     signal_std: tuple[float, float] = (1e-2, 1e2)
     noise_std: tuple[float, float] = (1e-3, 1e1)
+    linear_std: tuple[float, float] = (1e-3, 1e1)
 
     def __post_init__(self) -> None:
-        for name in ("length_scale", "signal_std", "noise_std"):
+        for name in ("length_scale", "signal_std", "noise_std", "linear_std"):
             lo, hi = getattr(self, name)
             if not (0 < lo < hi < np.inf):
                 raise ValueError(f"bounds for {name} must satisfy 0 < low < high < inf")
@@ -128,3 +131,18 @@ class HyperparameterBounds:
         for _ in range(n_random):
             guesses.append(rng.uniform(lo, hi))
         return guesses
+
+    def with_linear(
+        self,
+        guesses: list[np.ndarray],
+        log_bounds: list[tuple[float, float]],
+        rng: np.random.Generator,
+    ) -> tuple[list[np.ndarray], list[tuple[float, float]]]:
+        """Append ``log sigma_l`` to start points (default 1, then log-uniform in [0.1, 3],
+        both clipped to the bounds) and bounds from :meth:`initial_guesses` / :meth:`log_bounds`."""
+        lo, hi = np.log(self.linear_std)
+        out = [np.r_[guesses[0], np.clip(0.0, lo, hi)]]
+        for g in guesses[1:]:
+            a, b = max(lo, np.log(0.1)), min(hi, np.log(3.0))
+            out.append(np.r_[g, rng.uniform(a, max(a, b))])
+        return out, [*log_bounds, (float(lo), float(hi))]

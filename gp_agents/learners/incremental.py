@@ -47,7 +47,6 @@ from scipy.linalg import cholesky
 
 from ._validation import check_training_data
 from .cholesky_update import cholesky_add_rows
-from .features import fourier_features
 from .hyperparameters import GPHyperparameters, HyperparameterBounds
 from .ssgp import SSGP, HyperparameterSource
 from .standardization import Standardizer
@@ -87,7 +86,8 @@ class IncrementalSSGP(SSGP):
         forgetting_factor: ``lambda`` in (0, 1]; 1 keeps every sample with equal weight.
         prior_refresh: prior coordinates restored per sample (``m`` in the module docstring).
         hyperparameters, bounds, n_restarts, max_iter, max_optimization_samples, normalize,
-        random_state: as in :class:`SSGP` (used once, by :meth:`fit`).
+        random_state, linear_features, linear_std: as in :class:`SSGP` (used once, by
+        :meth:`fit`; with linear features the state has ``2r + d_in`` coordinates).
 
     Fitted attributes: those of :class:`SSGP`, with ``n_samples_seen_`` counting every sample
     since :meth:`fit` (initial batch included).
@@ -106,6 +106,8 @@ class IncrementalSSGP(SSGP):
         max_optimization_samples: int | None = 2000,
         normalize: bool = True,
         random_state: int | None = 0,
+        linear_features: bool = False,
+        linear_std: float = 1.0,
     ) -> None:
         super().__init__(
             n_frequencies,
@@ -116,6 +118,8 @@ class IncrementalSSGP(SSGP):
             max_optimization_samples=max_optimization_samples,
             normalize=normalize,
             random_state=random_state,
+            linear_features=linear_features,
+            linear_std=linear_std,
         )
         self.forgetting_factor = forgetting_factor
         self.prior_refresh = prior_refresh
@@ -179,7 +183,7 @@ class IncrementalSSGP(SSGP):
         new_b = np.empty_like(self.b_)
         rows = []
         for j in range(self.n_outputs_):
-            F = fourier_features(Zs, self.omega_[j], float(hyp.signal_std[j]))
+            F = self._features(Zs, j)
             Bj = F * np.sqrt(decay)[:, None]
             if restored.size:
                 E = np.zeros((restored.size, D))
@@ -188,7 +192,8 @@ class IncrementalSSGP(SSGP):
             rows.append(Bj)
             new_b[j] = lam**p * self.b_[j] + F.T @ (decay * Ys[:, j])
         # Everything that can fail is checked before the factors are touched: the rows are
-        # bounded (|phi| = sigma_s), so the updated factors are finite whenever these are.
+        # bounded (|phi| = sigma_s, plus sigma_l |z| for linear features), so the updated
+        # factors are finite whenever these are.
         if not (np.all(np.isfinite(new_b)) and all(np.all(np.isfinite(B)) for B in rows)):
             raise FloatingPointError("update produced non-finite values; state left unchanged")
         new_chol = [
@@ -225,6 +230,7 @@ class IncrementalSSGP(SSGP):
             "random_state": np.array(-1 if rs is None else int(rs)),
             "n_samples_seen": np.array(int(self.n_samples_seen_)),
             "base_frequencies": self.base_frequencies_,
+            "linear_std": (np.zeros(0) if self.linear_std_ is None else self.linear_std_),
             "cholesky_factor": np.stack(self._chol),  # raw factors: bit-exact round trip
             "b": self.b_,
             **std.to_arrays(),
@@ -250,7 +256,10 @@ class IncrementalSSGP(SSGP):
             normalize=bool(data["normalize"]),
             random_state=None if rs < 0 else rs,
         )
-        obj._install(Standardizer.from_arrays(data), hyp, np.asarray(data["base_frequencies"]))
+        lin = np.asarray(data.get("linear_std", np.zeros(0)), dtype=float)
+        obj.linear_features = lin.size > 0
+        obj._install(Standardizer.from_arrays(data), hyp, np.asarray(data["base_frequencies"]),
+                     lin if lin.size else None)
         chol = [np.asfortranarray(R) for R in np.asarray(data["cholesky_factor"], dtype=float)]
         obj._set_state(chol, np.asarray(data["b"], dtype=float), int(data["n_samples_seen"]))
         return obj

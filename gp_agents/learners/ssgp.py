@@ -17,6 +17,14 @@ likelihood with the base frequency draws held fixed (``hyperparameters="ssgp"``)
 
 (the Woodbury / determinant-lemma form of ``N(y; 0, Phi^T Phi + sigma_n^2 I)``), computed from
 the Cholesky factor of ``A`` in ``O(N D^2 + D^3)``.
+
+*Linear features* (``linear_features=True``): ``phi(z)`` is extended by ``sigma_l z`` (``d_in``
+more features, ``D = 2r + d_in``), i.e. the kernel becomes ``k_SE + sigma_l^2 z^T z'``: Bayesian
+linear regression on the inputs plus the SE residual around it. A residual that is linear in
+some inputs (damping: linear in the velocities) then extrapolates linearly outside the data
+instead of decaying back to the prior mean (or, with huge ``sigma_s`` and length scales at their
+bound, of the SE part imitating a polynomial). ``sigma_l`` is one more hyperparameter of the
+marginal likelihood (bounds :attr:`HyperparameterBounds.linear_std`).
 """
 
 from __future__ import annotations
@@ -50,27 +58,29 @@ HyperparameterSource = str | ExactGP | GPHyperparameters
 
 
 def ssgp_nlml(
-    theta: np.ndarray, Z: np.ndarray, y: np.ndarray, base: np.ndarray
+    theta: np.ndarray, Z: np.ndarray, y: np.ndarray, base: np.ndarray, linear: bool = False
 ) -> tuple[float, np.ndarray]:
     """SSGP negative log marginal likelihood of one output and its analytic gradient.
 
     With ``F = Phi^T`` (N, D), residual ``e = y - F w`` and
     ``G = F A^{-1} - e w^T / sigma_n^2`` (N, D), a change ``dF`` changes the NLML by
-    ``sum(G * dF)``; this gives the length-scale and ``sigma_s`` terms. The noise term is
-    ``-q / sigma_n^2 + w^T w + sigma_n^2 tr(A^{-1}) + N - D`` with ``q = y^T y - b^T w``.
+    ``sum(G * dF)``; this gives the length-scale, ``sigma_s`` and ``sigma_l`` terms. The noise
+    term is ``-q / sigma_n^2 + w^T w + sigma_n^2 tr(A^{-1}) + N - D`` with
+    ``q = y^T y - b^T w``.
 
     Args:
-        theta: (d + 2,) ``[log ell, log sigma_s, log sigma_n]``.
+        theta: (d + 2,) ``[log ell, log sigma_s, log sigma_n]``, or (d + 3,) with
+            ``log sigma_l`` appended when ``linear``.
         Z: (N, d) standardized inputs.
         y: (N,) standardized targets.
         base: (d, r) fixed standard-normal base frequencies.
+        linear: the features end with the linear block ``sigma_l z`` (see :class:`SSGP`).
 
     Returns:
-        ``(nlml, gradient (d + 2,))``.
+        ``(nlml, gradient (d + 2,) or (d + 3,))``.
     """
     n, d = Z.shape
     r = base.shape[1]
-    D = 2 * r
     ell = np.exp(theta[:d])
     sf = float(np.exp(theta[d]))
     s = float(np.exp(2.0 * theta[d + 1]))
@@ -78,7 +88,11 @@ def ssgp_nlml(
     U = Z @ omega
     c = sf / np.sqrt(r)
     cosU, sinU = np.cos(U), np.sin(U)
-    F = c * np.concatenate([cosU, sinU], axis=1)
+    blocks = [c * cosU, c * sinU]
+    if linear:
+        blocks.append(float(np.exp(theta[d + 2])) * Z)
+    F = np.concatenate(blocks, axis=1)
+    D = F.shape[1]
     A = F.T @ F
     A[np.diag_indices(D)] += s
     R = cholesky(A, lower=False, check_finite=False)
@@ -91,11 +105,14 @@ def ssgp_nlml(
     FAinv = (F @ Rinv) @ Rinv.T
     e = y - F @ w
     G = FAinv - np.outer(e, w) / s
-    grad_sf = float(np.sum(G * F))
-    H = c * (G[:, r:] * cosU - G[:, :r] * sinU)  # (N, r): d nlml / d U
+    grad_sf = float(np.sum(G[:, : 2 * r] * F[:, : 2 * r]))
+    H = c * (G[:, r : 2 * r] * cosU - G[:, :r] * sinU)  # (N, r): d nlml / d U
     grad_ell = -np.sum(Z * (H @ omega.T), axis=0)
     grad_sn = -q / s + float(w @ w) + s * float(np.sum(Rinv * Rinv)) + (n - D)
-    return float(nlml), np.r_[grad_ell, grad_sf, grad_sn]
+    grad = np.r_[grad_ell, grad_sf, grad_sn]
+    if linear:
+        grad = np.r_[grad, float(np.sum(G[:, 2 * r :] * F[:, 2 * r :]))]
+    return float(nlml), grad
 
 
 class SSGP(BaseGPLearner):
@@ -113,11 +130,17 @@ class SSGP(BaseGPLearner):
         max_optimization_samples: optimize on at most this many random points (``None``: all).
         normalize: standardize inputs and outputs (ignored when copying from an ExactGP).
         random_state: seed of the frequency draws, restarts and subset.
+        linear_features: append the linear features ``sigma_l z`` (module docstring).
+        linear_std: ``sigma_l`` when the hyperparameters are not optimized here (``"exact"``,
+            an ExactGP or given :class:`GPHyperparameters`); with ``"ssgp"`` it is the
+            marginal likelihood's.
 
     Fitted attributes:
         hyperparameters_, standardizer_, base_frequencies_ (d_out, d_in, r), omega_
         (d_out, d_in, r), cholesky_factor_ (d_out, 2r, 2r) upper ``R`` with ``A = R^T R``,
-        b_ (d_out, 2r), weights_ (d_out, 2r), n_features_in_, n_outputs_, n_samples_seen_.
+        b_ (d_out, 2r), weights_ (d_out, 2r), n_features_in_, n_outputs_, n_samples_seen_,
+        linear_std_ (d_out,) ``sigma_l`` or None (``2r`` reads ``2r + d_in`` with linear
+        features).
     """
 
     def __init__(
@@ -131,8 +154,12 @@ class SSGP(BaseGPLearner):
         max_optimization_samples: int | None = 2000,
         normalize: bool = True,
         random_state: int | None = 0,
+        linear_features: bool = False,
+        linear_std: float = 1.0,
     ) -> None:
         self.n_frequencies = n_frequencies
+        self.linear_features = linear_features
+        self.linear_std = linear_std
         self.hyperparameters = hyperparameters
         self.bounds = bounds
         self.n_restarts = n_restarts
@@ -147,12 +174,12 @@ class SSGP(BaseGPLearner):
         Z, Y = check_training_data(Z, Y)
         if int(self.n_frequencies) < 1:
             raise ValueError("n_frequencies must be >= 1")
-        std, hyp, base = self._resolve_hyperparameters(Z, Y)
+        std, hyp, base, lin = self._resolve_hyperparameters(Z, Y)
         Zs, Ys = std.transform_inputs(Z), std.transform_outputs(Y)
-        self._install(std, hyp, base)
+        self._install(std, hyp, base, lin)
         chol, b = [], []
         for j in range(Y.shape[1]):
-            F = fourier_features(Zs, self.omega_[j], float(hyp.signal_std[j]))
+            F = self._features(Zs, j)
             Rj, bj = self._batch_state(F, Ys[:, j], float(hyp.noise_std[j]))
             chol.append(Rj)
             b.append(bj)
@@ -161,8 +188,12 @@ class SSGP(BaseGPLearner):
 
     def _resolve_hyperparameters(
         self, Z: np.ndarray, Y: np.ndarray
-    ) -> tuple[Standardizer, GPHyperparameters, np.ndarray]:
+    ) -> tuple[Standardizer, GPHyperparameters, np.ndarray, np.ndarray | None]:
         d_in, d_out = Z.shape[1], Y.shape[1]
+        linear = bool(self.linear_features)
+        fixed_lin = np.full(d_out, float(self.linear_std)) if linear else None
+        if linear and not (np.isfinite(self.linear_std) and self.linear_std > 0):
+            raise ValueError("linear_std must be finite and positive")
         r = int(self.n_frequencies)
         base = draw_base_frequencies(d_out, d_in, r, self.random_state)
         src = self.hyperparameters
@@ -180,12 +211,12 @@ class SSGP(BaseGPLearner):
                 raise NotFittedError("the ExactGP passed as hyperparameters is not fitted")
             if src.n_features_in_ != d_in or src.n_outputs_ != d_out:
                 raise ValueError("the ExactGP's dimensions do not match the data")
-            return src.standardizer_, src.hyperparameters_, base
+            return src.standardizer_, src.hyperparameters_, base, fixed_lin
         std = Standardizer.fit(Z, Y, self.normalize)
         if isinstance(src, GPHyperparameters):
             if src.d_in != d_in or src.d_out != d_out:
                 raise ValueError("hyperparameters do not match the data dimensions")
-            return std, src, base
+            return std, src, base, fixed_lin
         if not (isinstance(src, str) and src == "ssgp"):
             raise ValueError(
                 "hyperparameters must be 'ssgp', 'exact', a fitted ExactGP or GPHyperparameters,"
@@ -199,19 +230,31 @@ class SSGP(BaseGPLearner):
         if self.max_optimization_samples is not None and n > self.max_optimization_samples:
             idx = np.sort(rng.choice(n, self.max_optimization_samples, replace=False))
         rows = []
+        guesses = bounds.initial_guesses(d_in, self.n_restarts, rng)
+        log_bounds = bounds.log_bounds(d_in)
+        if linear:
+            guesses, log_bounds = bounds.with_linear(guesses, log_bounds, rng)
         for j in range(d_out):
             Zo, yo, bj = Zs[idx], Ys[idx, j], base[j]
             theta, _ = minimize_multistart(
-                lambda t, Zo=Zo, yo=yo, bj=bj: ssgp_nlml(t, Zo, yo, bj),
-                bounds.initial_guesses(d_in, self.n_restarts, rng),
-                bounds.log_bounds(d_in),
+                lambda t, Zo=Zo, yo=yo, bj=bj: ssgp_nlml(t, Zo, yo, bj, linear),
+                guesses,
+                log_bounds,
                 self.max_iter,
             )
             rows.append(theta)
-        return std, GPHyperparameters.from_log_params(rows), base
+        lin = np.exp([t[d_in + 2] for t in rows]) if linear else None
+        return (std, GPHyperparameters.from_log_params([t[: d_in + 2] for t in rows]), base,
+                lin)
 
-    def _install(self, std: Standardizer, hyp: GPHyperparameters, base: np.ndarray) -> None:
+    def _install(self, std: Standardizer, hyp: GPHyperparameters, base: np.ndarray,
+                 linear_std: np.ndarray | None = None) -> None:
         """Set the data-independent fitted attributes."""
+        if linear_std is not None:
+            linear_std = np.asarray(linear_std, dtype=float).reshape(hyp.d_out)
+            if not (np.all(np.isfinite(linear_std)) and np.all(linear_std > 0)):
+                raise ValueError("linear_std must be finite and positive")
+        self.linear_std_ = linear_std
         self.standardizer_ = std
         self.hyperparameters_ = hyp
         self.base_frequencies_ = base
@@ -221,6 +264,17 @@ class SSGP(BaseGPLearner):
         self.n_features_in_ = hyp.d_in
         self.n_outputs_ = hyp.d_out
         self._reset_layout()
+
+    def _features(self, Zs: np.ndarray, j: int) -> np.ndarray:
+        """(N, D) feature rows of output ``j``: the Fourier features, then ``sigma_l z`` if
+        the model has linear features."""
+        hyp = self.hyperparameters_
+        assert hyp is not None
+        F = fourier_features(Zs, self.omega_[j], float(hyp.signal_std[j]))
+        lin = getattr(self, "linear_std_", None)
+        if lin is None:
+            return F
+        return np.concatenate([F, lin[j] * Zs], axis=1)
 
     def _batch_state(
         self, F: np.ndarray, y: np.ndarray, noise_std: float
@@ -281,7 +335,7 @@ class SSGP(BaseGPLearner):
         mean = np.empty((Zs.shape[0], self.n_outputs_))
         var = np.empty_like(mean) if return_var else None
         for j in range(self.n_outputs_):
-            F = fourier_features(Zs, self.omega_[j], float(hyp.signal_std[j]))
+            F = self._features(Zs, j)
             mean[:, j] = F @ W[j]
             if var is not None:
                 V = solve_triangular(self._chol[j], F.T, trans="T", check_finite=False)
@@ -292,31 +346,36 @@ class SSGP(BaseGPLearner):
         hyp = self.hyperparameters_
         assert hyp is not None
         W = self.weights_
-        return np.stack(
-            [
-                fourier_mean_grad(Zs, self.omega_[j], float(hyp.signal_std[j]), W[j])
-                for j in range(self.n_outputs_)
-            ],
-            axis=1,
-        )
+        D = 2 * self.omega_.shape[2]
+        lin = self.linear_std_
+        grads = []
+        for j in range(self.n_outputs_):
+            g = fourier_mean_grad(Zs, self.omega_[j], float(hyp.signal_std[j]), W[j][:D])
+            if lin is not None:
+                g = g + lin[j] * W[j][D:][None, :]
+            grads.append(g)
+        return np.stack(grads, axis=1)
 
     # ------------------------------------------------------------------ CasADi export
     def _casadi_block_shapes(self) -> list[tuple[str, tuple[int, ...]]]:
         d, r = self.omega_.shape[1:]
+        lin = self.linear_std_ is not None
+        D = 2 * r + (d if lin else 0)
         shapes: list[tuple[str, tuple[int, ...]]] = []
         for j in range(self.n_outputs_):
             shapes += [
                 (f"omega_{j}", (d, r)),
                 (f"sf_{j}", (1,)),
                 (f"sn_{j}", (1,)),
-                (f"w_{j}", (2 * r,)),
-                (f"Rinv_{j}", (2 * r, 2 * r)),
+                *([(f"sl_{j}", (1,))] if lin else []),
+                (f"w_{j}", (D,)),
+                (f"Rinv_{j}", (D, D)),
             ]
         return shapes
 
     def _casadi_blocks(self) -> list[tuple[str, np.ndarray]]:
-        """Per output: frequencies, sigma_s, sigma_n, weights, and ``R^{-1}`` (for the variance
-        ``sigma_n^2 (1 + |R^{-T} phi|^2)``)."""
+        """Per output: frequencies, sigma_s, sigma_n, (sigma_l,) weights, and ``R^{-1}`` (for
+        the variance ``sigma_n^2 (1 + |R^{-T} phi|^2)``)."""
         hyp = self.hyperparameters_
         assert hyp is not None
         W = self.weights_
@@ -327,6 +386,8 @@ class SSGP(BaseGPLearner):
                 (f"omega_{j}", self.omega_[j]),
                 (f"sf_{j}", hyp.signal_std[j : j + 1]),
                 (f"sn_{j}", hyp.noise_std[j : j + 1]),
+                *([(f"sl_{j}", self.linear_std_[j : j + 1])]
+                  if self.linear_std_ is not None else []),
                 (f"w_{j}", W[j]),
                 (f"Rinv_{j}", Rinv[j]),
             ]
@@ -339,6 +400,8 @@ class SSGP(BaseGPLearner):
         phi = sym_fourier_features(
             zs, lay.unpack(theta, f"omega_{j}"), lay.unpack(theta, f"sf_{j}")
         )
+        if self.linear_std_ is not None:
+            phi = ca.vertcat(phi, lay.unpack(theta, f"sl_{j}") * zs)
         mean = ca.dot(lay.unpack(theta, f"w_{j}"), phi)
         if not variance:
             return mean, None

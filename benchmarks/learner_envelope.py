@@ -1,0 +1,168 @@
+"""Learner variants of the cart-pole SSGP-MPC across the robustness envelope (issue 18).
+
+Runs the benchmark's own episodes (:func:`benchmarks.trial.execute`) of ``cartpole`` /
+``online`` with ``ssgp-mpc`` (or ``ssgp-mpc-linearized``), the learner replaced by a variant
+of :data:`VARIANTS`, on the cells ``fixed`` (``Cell()``), ``same`` (``Cell(randomize=0.1)``) and
+``diff`` (``Cell(randomize=0.1, data="diff")``). TUNING seeds only (0-9; the robustness
+preset's evaluation seeds 200-249 are not for tuning). One JSON line per episode is appended to
+``--out`` (episodes already there are skipped, so a run can be resumed or extended), then the
+Markdown table of all recorded episodes is printed::
+
+    OMP_NUM_THREADS=1 python -m benchmarks.learner_envelope --variants base,linear \\
+        --cells diff,same,fixed --seeds 0-4 --out benchmarks/results/learner_envelope.jsonl
+
+``--table`` only prints the table of ``--out``. The measured episodes of issue 18 (seeds 0-9,
+``ssgp-mpc``; 0-9 of the linearized recipe for ``base`` and ``noise2``) are in
+``benchmarks/results/learner_envelope.jsonl``. Their outcome: every noise floor (0.05-0.3) or
+signal-std cap raised the diff cell (base 2/10 -> 6-7/10) but cost successes on the fixed truth
+or same-data cell (base 10/10 and 9/10), and broke the linearized recipe; linear features
+(``IncrementalSSGP(linear_features=True)``) alone did not help (diff 0/5). No variant replaced
+:func:`gp_agents.online_ssgp`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import numpy as np
+
+CELLS: dict[str, dict[str, Any]] = {
+    "fixed": {},
+    "same": {"randomize": 0.1},
+    "diff": {"randomize": 0.1, "data": "diff"},
+}
+
+
+def _ssgp(forgetting: float = 0.995, linear: bool = False, **bounds: Any
+          ) -> Callable[[], Any]:
+    """An ``IncrementalSSGP(50)`` as :func:`gp_agents.online_ssgp` builds it (length scales
+    >= 1), with the given forgetting factor, linear features and further bounds."""
+    def make() -> Any:
+        from gp_agents.learners import HyperparameterBounds, IncrementalSSGP
+
+        return IncrementalSSGP(50, forgetting_factor=forgetting, hyperparameters="ssgp",
+                               random_state=0, linear_features=linear,
+                               bounds=HyperparameterBounds(length_scale=(1.0, 100.0), **bounds))
+    return make
+
+
+def _recipe() -> Any:
+    from gp_agents import online_ssgp
+
+    return online_ssgp()
+
+
+NOISE05 = {"noise_std": (0.05, 10.0)}
+NOISE1 = {"noise_std": (0.1, 10.0)}
+NOISE2 = {"noise_std": (0.2, 10.0)}
+NOISE3 = {"noise_std": (0.3, 10.0)}
+CAPPED = {"signal_std": (0.1, 3.0), "noise_std": (0.05, 10.0)}
+
+VARIANTS: dict[str, Callable[[], Any]] = {
+    "base": _ssgp(),  # online_ssgp() on main
+    "noise05": _ssgp(**NOISE05),  # (a) noise std >= 0.05 (standardized)
+    "noise1": _ssgp(**NOISE1),
+    "noise2": _ssgp(**NOISE2),
+    "noise3": _ssgp(**NOISE3),
+    "bounded": _ssgp(**CAPPED),  # (a) and signal std in [0.1, 3]
+    "noise05-f98": _ssgp(0.98, **NOISE05),  # (c)
+    "noise05-f999": _ssgp(0.999, **NOISE05),
+    "linear": _ssgp(linear=True),  # (b) linear + SE features
+    "linear-noise05": _ssgp(linear=True, **NOISE05),
+    "linear-noise1": _ssgp(linear=True, **NOISE1),
+    "linear-noise2": _ssgp(linear=True, **NOISE2),
+    "linear-noise3": _ssgp(linear=True, **NOISE3),
+    "linear-bounded": _ssgp(linear=True, **CAPPED),
+    "recipe": _recipe,  # whatever online_ssgp() is on this checkout
+}
+
+
+def run_one(variant: str, cell: str, seed: int, controller: str) -> dict[str, Any]:
+    import benchmarks.controllers as controllers
+    from benchmarks.trial import Cell, TrialSpec, execute
+
+    make = VARIANTS[variant]
+    original = controllers.make_learner
+    controllers.make_learner = lambda kind: make()
+    try:
+        rec = execute(TrialSpec("episode", "cartpole", "online", controller, seed,
+                                cell=Cell(**CELLS[cell])))
+    finally:
+        controllers.make_learner = original
+    m = rec["metrics"]
+    return {"variant": variant, "controller": controller, "cell": cell, "seed": seed,
+            "status": rec["status"], "success": bool(m.get("success", False)),
+            "cost": float(m.get("cost", np.nan)), "wall_s": round(rec["wall_s"], 1),
+            "message": rec["message"][-300:]}
+
+
+def table(rows: list[dict[str, Any]]) -> str:
+    groups: dict[tuple[str, str, str], list[dict[str, Any]]] = {}
+    for r in rows:
+        groups.setdefault((r["controller"], r["variant"], r["cell"]), []).append(r)
+    out = ["| controller | variant | cell | seeds | successes | mean cost | failed seeds |",
+           "|---|---|---|---|---|---|---|"]
+    order = {c: i for i, c in enumerate(CELLS)}
+    for (ctrl, var, cell), rs in sorted(groups.items(),
+                                        key=lambda kv: (kv[0][0], kv[0][1], order[kv[0][2]])):
+        rs = sorted(rs, key=lambda r: r["seed"])
+        seeds = [r["seed"] for r in rs]
+        ok = sum(r["success"] for r in rs)
+        cost = np.nanmean([r["cost"] for r in rs])
+        failed = ",".join(str(r["seed"]) for r in rs if not r["success"]) or "-"
+        span = f"{min(seeds)}-{max(seeds)}" if seeds == list(range(min(seeds), max(seeds) + 1)) \
+            else ",".join(map(str, seeds))
+        out.append(f"| {ctrl} | {var} | {cell} | {span} | {ok}/{len(rs)} | {cost:.1f} | "
+                   f"{failed} |")
+    return "\n".join(out)
+
+
+def _seeds(text: str) -> list[int]:
+    seeds: list[int] = []
+    for part in text.split(","):
+        lo, _, hi = part.partition("-")
+        seeds += list(range(int(lo), int(hi or lo) + 1))
+    if any(not 0 <= s <= 9 for s in seeds):
+        raise SystemExit("tuning seeds are 0-9 only")
+    return seeds
+
+
+def main(argv: list[str] | None = None) -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--variants", default="base")
+    p.add_argument("--cells", default="diff,same,fixed")
+    p.add_argument("--seeds", default="0-4")
+    p.add_argument("--controller", default="ssgp-mpc")
+    p.add_argument("--out", type=Path, default=Path("benchmarks/results/learner_envelope.jsonl"))
+    p.add_argument("--table", action="store_true", help="only print the table of --out")
+    a = p.parse_args(argv)
+    rows = [json.loads(s) for s in a.out.read_text().splitlines()] if a.out.exists() else []
+    if not a.table:
+        done = {(r["variant"], r["controller"], r["cell"], r["seed"]) for r in rows}
+        a.out.parent.mkdir(parents=True, exist_ok=True)
+        for variant in a.variants.split(","):
+            for cell in a.cells.split(","):
+                for seed in _seeds(a.seeds):
+                    if (variant, a.controller, cell, seed) in done:
+                        continue
+                    t = time.perf_counter()
+                    r = run_one(variant, cell, seed, a.controller)
+                    rows.append(r)
+                    with a.out.open("a") as fh:
+                        fh.write(json.dumps(r) + "\n")
+                    print(f"{variant} {a.controller} {cell} s{seed}: success={r['success']} "
+                          f"cost={r['cost']:.1f} {r['status']} ({time.perf_counter() - t:.0f} s)",
+                          flush=True)
+    print(table(rows))
+
+
+if __name__ == "__main__":
+    main()
