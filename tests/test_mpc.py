@@ -406,18 +406,20 @@ def test_ssgp_mpc_swings_up_the_damped_cart_pole():
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason=(
-    "measured since the first period is held (a plan the plant can execute): on seed 0 one "
-    "expansion about the warm start is off by 24x its tolerance mid-swing, the next NLPs are "
-    "infeasible and the cart leaves the track; with the old polynomial first period it "
-    "recovered. LinearizedGP(max_linearizations=3) and the RTI recipe swing it up. The "
-    "linearized preset's 10 seeds are in the README."))
 def test_linearized_ssgp_mpc_swings_up_the_damped_cart_pole():
-    env = gym.make(CART, scenario="online")
-    agent = PseudospectralMPC.from_env(env, online_ssgp(), learned_dynamics="linearized")
-    agent.pretrain(collect_initial_data(env, 200, seed=0))
-    _, _, info = run_episode(env, agent, seed=0)
-    assert info["success"]
+    """The linearized recipe (``ssgp-mpc-linearized`` trials) on seeds 0-3: at least 3 of 4.
+
+    Seed 0 alone was a strict xfail (one expansion mid-swing off by 24x its tolerance, then
+    infeasible NLPs); after a change of the SSGP's code that only reorders floating-point
+    operations it swings up. A single marginal episode flips with the last bits; the rate over
+    seeds is the claim (as for the GP-in-NLP recipe above)."""
+    from benchmarks.trial import TrialSpec, execute
+
+    records = [execute(TrialSpec("episode", "cartpole", "online", "ssgp-mpc-linearized", s))
+               for s in range(4)]
+    assert all(r["status"] == "ok" for r in records), [r.get("error") for r in records]
+    successes = [bool(r["metrics"]["success"]) for r in records]
+    assert sum(successes) >= 3, [r["metrics"]["cost"] for r in records]
 
 
 @pytest.mark.slow
