@@ -17,10 +17,10 @@ Markdown table of all recorded episodes is printed::
 signal-std cap raised the diff cell (base 2/10 -> 6-7/10) but cost successes on the fixed truth
 or same-data cell (base 10/10 and 9/10), and broke the linearized recipe; linear features
 (``IncrementalSSGP(linear_features=True)``) alone did not help (diff 0/5); initial data from an
-energy-pumping controller (``energy-data``: pole within 1.2 rad of hanging and 7.2 rad/s,
-against 1.0 rad and 4.1 rad/s of the crude tracker; still short of the swing-up's region) kept
-fixed 10/10, same 8/10, and took diff from 2/10 to 0/10: richer data from another system
-mislead more. No variant replaced :func:`gp_agents.online_ssgp`.
+energy-pumping controller (``energy-data``; its data still stay far from upright in an ad-hoc
+look, not a committed measurement) kept fixed 10/10, same 8/10, and took diff from 2/10 to
+0/10: richer data from another system mislead more. No variant replaced
+:func:`gp_agents.online_ssgp`.
 """
 
 from __future__ import annotations

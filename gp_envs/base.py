@@ -25,6 +25,13 @@ RANDOMIZE_RANGE = ParamRange(0.0, 1.0, True, False, "relative spread of the true
 """Valid values of the ``randomize`` option (dimensionless)."""
 
 
+def wrap_to_circle(angle: float) -> float:
+    """``angle`` (rad) wrapped to ``[0, 2 pi)`` such that its float32 cast stays inside the
+    observation space's ``[0, 2 pi]`` (an angle just below 2 pi rounds up: it becomes 0)."""
+    wrapped = float(np.mod(angle, 2 * np.pi))
+    return 0.0 if wrapped >= np.float32(2 * np.pi) else wrapped
+
+
 NOISE_STREAM = 0x6F62736E6F697365
 """Second key of the observation-noise generator's seed, ``default_rng([seed, NOISE_STREAM])``:
 the noise has its own stream, so the initial states and parameter draws of a seed are the same

@@ -44,12 +44,13 @@ on every component.
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any, ClassVar
 
 import numpy as np
 from gymnasium import spaces
 
-from gp_envs.base import GPEnv, ParamChange, Scenario
+from gp_envs.base import GPEnv, ParamChange, Scenario, wrap_to_circle
 from gp_envs.model import ControlModel, Task, diag
 from gp_envs.physics import cartpole
 from gp_envs.systems import PlanningDefaults, Policy, System, register_system
@@ -72,13 +73,11 @@ class CartPoleSwingUpEnv(GPEnv):
             true={"mc": 1.0, "mp": 0.5, "l": 0.5, "b1": 0.3, "b2": 0.3, "g": G},
             nominal={"mc": 0.9, "mp": 0.45, "l": 0.45, "b1": 0.0, "b2": 0.0, "g": G},
             u_lb=(-35.0,), u_ub=(35.0,)),
-        "online-wear": Scenario(
-            description="table 2's setting with the ground and pivot damping doubling at 3 s",
-            true={"mc": 1.0, "mp": 0.5, "l": 0.5, "b1": 0.3, "b2": 0.3, "g": G},
-            nominal={"mc": 0.9, "mp": 0.45, "l": 0.45, "b1": 0.0, "b2": 0.0, "g": G},
-            u_lb=(-35.0,), u_ub=(35.0,),
-            changes=(ParamChange(3.0, {"b1": 2.0, "b2": 2.0}),)),
+
     }
+    SCENARIOS["online-wear"] = dataclasses.replace(
+        SCENARIOS["online"], changes=(ParamChange(3.0, {"b1": 2.0, "b2": 2.0}),),
+        description="table 2's setting with the ground and pivot damping doubling at 3 s")
     DEFAULT_SCENARIO = "online"
     DT = 0.05
     SUBSTEPS = 10
@@ -111,9 +110,7 @@ class CartPoleSwingUpEnv(GPEnv):
 
     def _observe(self, state: np.ndarray) -> np.ndarray:
         obs = state.copy()
-        obs[1] = np.mod(obs[1], 2 * np.pi)
-        if obs[1] >= np.float32(2 * np.pi):  # keep the float32 cast inside [0, 2 pi]
-            obs[1] = 0.0
+        obs[1] = wrap_to_circle(obs[1])
         return obs
 
     def _initial_state(self) -> np.ndarray:

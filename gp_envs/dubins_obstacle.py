@@ -34,6 +34,7 @@ noise on the heading.
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any, ClassVar
 
 import numpy as np
@@ -60,14 +61,12 @@ class DubinsObstacleEnv(GPEnv):
             true={"b1": 0.3, "b2": 0.3}, nominal={"b1": 0.3, "b2": 0.3},
             u_lb=(0.0, -2.0), u_ub=(2.0, 2.0),
             nominal_spread={"b1": 0.3, "b2": 0.3}, nominal_max=0.9),
-        "paper-wear": Scenario(
-            description="paper's setting; the actuator losses grow to 1.5x at 5 s, 2x at 10 s",
-            true={"b1": 0.3, "b2": 0.3}, nominal={"b1": 0.3, "b2": 0.3},
-            u_lb=(0.0, -2.0), u_ub=(2.0, 2.0),
-            nominal_spread={"b1": 0.3, "b2": 0.3}, nominal_max=0.9,
-            changes=(ParamChange(5.0, {"b1": 1.5, "b2": 1.5}),
-                     ParamChange(10.0, {"b1": 2.0, "b2": 2.0}))),
     }
+    SCENARIOS["paper-wear"] = dataclasses.replace(
+        SCENARIOS["paper"],
+        changes=(ParamChange(5.0, {"b1": 1.5, "b2": 1.5}),
+                 ParamChange(10.0, {"b1": 2.0, "b2": 2.0})),
+        description="paper's setting; the actuator losses grow to 1.5x at 5 s, 2x at 10 s")
     DEFAULT_SCENARIO = "paper"
     DT = 0.1
     metadata: ClassVar[dict[str, Any]] = {**GPEnv.metadata, "render_fps": round(1 / DT)}

@@ -36,7 +36,7 @@ from typing import Any, ClassVar
 import numpy as np
 from gymnasium import spaces
 
-from gp_envs.base import GPEnv, Scenario
+from gp_envs.base import GPEnv, Scenario, wrap_to_circle
 from gp_envs.model import ControlModel, Task, diag
 from gp_envs.physics import pendulum
 from gp_envs.systems import PlanningDefaults, Policy, System, register_system
@@ -82,9 +82,7 @@ class PendulumSwingUpEnv(GPEnv):
 
     def _observe(self, state: np.ndarray) -> np.ndarray:
         obs = state.copy()
-        obs[0] = np.mod(obs[0], 2 * np.pi)
-        if obs[0] >= np.float32(2 * np.pi):  # keep the float32 cast inside [0, 2 pi]
-            obs[0] = 0.0
+        obs[0] = wrap_to_circle(obs[0])
         return obs
 
     def _initial_state(self) -> np.ndarray:

@@ -36,6 +36,7 @@ box terminates with a penalty (remaining time times a bound of the stage cost). 
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any, ClassVar
 
 import numpy as np
@@ -66,13 +67,11 @@ class QuadrotorEnv(GPEnv):
             true={"m": 1.0, **_INERTIA, "L": 0.24, "g": G},
             nominal={"m": 0.99, **_INERTIA, "L": 0.2376, "g": G},
             u_lb=(0.0,) * 4, u_ub=(5.0,) * 4),
-        "online-payload": Scenario(
-            description="table 2's setting; picks up a payload at 3 s (+20% mass)",
-            true={"m": 1.0, **_INERTIA, "L": 0.24, "g": G},
-            nominal={"m": 0.99, **_INERTIA, "L": 0.2376, "g": G},
-            u_lb=(0.0,) * 4, u_ub=(5.0,) * 4,
-            changes=(ParamChange(3.0, {"m": 1.2}),)),
+
     }
+    SCENARIOS["online-payload"] = dataclasses.replace(
+        SCENARIOS["online"], changes=(ParamChange(3.0, {"m": 1.2}),),
+        description="table 2's setting; picks up a payload at 3 s (+20% mass)")
     DEFAULT_SCENARIO = "online"
     DT = 0.05
     SUBSTEPS = 5

@@ -367,15 +367,8 @@ def test_casadi_export_matches_predict(kind, sym, data, exact_gp):
     fn = ca.Function("gp", [z, theta], [mean, var, ca.jacobian(mean, z)])
 
     def check() -> None:
-        tv = model.casadi_param_values()
-        assert tv.shape == (P,)
-        m, s = model.predict(Zt[:6], return_std=True)
-        G = model.predict_gradient(Zt[:6])
-        for n in range(6):
-            cm, cv, cj = (np.asarray(a) for a in fn(Zt[n], tv))
-            np.testing.assert_allclose(cm.ravel(), m[n], rtol=1e-10, atol=1e-10)
-            np.testing.assert_allclose(cv.ravel(), s[n] ** 2, rtol=1e-8, atol=1e-12)
-            np.testing.assert_allclose(cj, G[n], rtol=1e-8, atol=1e-9)
+        assert model.casadi_param_values().shape == (P,)
+        _check_export(fn, model, Zt[:6])
 
     check()
     if kind == "incremental":  # the same Function keeps working after updates
@@ -590,6 +583,19 @@ def test_incremental_linear_equals_batch(lam, m, data, exact_gp):
         np.testing.assert_allclose(model.weights_[j], w, rtol=1e-7, atol=1e-8 * np.abs(w).max())
 
 
+def _check_export(fn: ca.Function, model, Z: np.ndarray) -> None:
+    """The exported ``fn(z, theta) -> (mean, variance, d mean / dz)`` with the model's current
+    parameter values against its NumPy prediction, variance and gradient at each row of Z."""
+    tv = model.casadi_param_values()
+    m, sd = model.predict(Z, return_std=True)
+    G = model.predict_gradient(Z)
+    for n in range(len(Z)):
+        cm, cv, cj = (np.asarray(a) for a in fn(Z[n], tv))
+        np.testing.assert_allclose(cm.ravel(), m[n], rtol=1e-10, atol=1e-10)
+        np.testing.assert_allclose(cv.ravel(), sd[n] ** 2, rtol=1e-8, atol=1e-12)
+        np.testing.assert_allclose(cj, G[n], rtol=1e-8, atol=1e-9)
+
+
 @pytest.mark.parametrize("sym", [ca.SX, ca.MX], ids=["SX", "MX"])
 def test_casadi_export_linear_features(sym, data):
     Z, Y, Zt, _ = data
@@ -602,14 +608,7 @@ def test_casadi_export_linear_features(sym, data):
                                         ca.jacobian(mean, z)])
 
     def check() -> None:
-        tv = model.casadi_param_values()
-        m, s = model.predict(Zt[:6], return_std=True)
-        G = model.predict_gradient(Zt[:6])
-        for n in range(6):
-            cm, cv, cj = (np.asarray(a) for a in fn(Zt[n], tv))
-            np.testing.assert_allclose(cm.ravel(), m[n], rtol=1e-10, atol=1e-10)
-            np.testing.assert_allclose(cv.ravel(), s[n] ** 2, rtol=1e-8, atol=1e-12)
-            np.testing.assert_allclose(cj, G[n], rtol=1e-8, atol=1e-9)
+        _check_export(fn, model, Zt[:6])
 
     check()
     model.update(Z[60:61], Y[60:61])
