@@ -6,8 +6,8 @@ export OMP_NUM_THREADS ?= 1
 
 # The committed reports live in benchmarks/results/<preset> (update_readme reads them there);
 # gp-bench's own default is ./benchmark-results/<preset>, so these targets pass --out.
-.PHONY: bench bench-full bench-acceptance bench-linearized bench-rti bench-pendulum \
-	bench-robustness test throughput clean
+.PHONY: bench bench-full bench-acceptance bench-linearized bench-rti bench-compute \
+	bench-pendulum bench-robustness test throughput clean
 
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -36,6 +36,9 @@ bench-linearized: $(VENV)/.installed  # the linearized SSGP-MPC's acceptance run
 bench-rti: $(VENV)/.installed  # real-time iteration vs converged MPC, and the peers comparison
 	$(PY) -m benchmarks --preset rti --workers 2 --out benchmarks/results/rti
 	$(PY) -m benchmarks.update_readme rti
+
+bench-compute: $(VENV)/.installed  # per-step times; converged vs RTI step against nodes, horizon, r, samples
+	$(PY) -m benchmarks --preset compute --workers 2 --out benchmarks/results/compute
 
 bench-pendulum: $(VENV)/.installed  # the fourth system, added in one file (~4 min)
 	$(PY) -m benchmarks --preset pendulum --workers 2 --out benchmarks/results/pendulum

@@ -13,6 +13,11 @@ Two trial kinds (scheduled and stored like episodes, see :mod:`benchmarks.trial`
   ``online_ssgp(r)`` (the SSGP-MPC's learner recipe with ``r`` frequencies) fitted on the initial
   data, then ``learner.update`` timed on each of 200 further transitions, one sample at a time
   (what the MPC does at every control period).
+- ``"step-vs-nodes"``, ``"step-vs-horizon"``, ``"step-vs-rank"`` (:data:`STEP_SCALING`;
+  ``param`` = LG nodes of the receding interval, the horizon in milliseconds, or the SSGP's
+  rank r): the trial's MPC recipe (converged or RTI, nominal or SSGP) with that one setting
+  changed, run closed loop for ``max_steps`` periods with every ``act`` timed (the first, which
+  builds the NLP, left out).
 """
 
 from __future__ import annotations
@@ -28,6 +33,14 @@ from gp_agents.agent import rollout
 
 N_TIMED_UPDATES = 200
 """Single-sample updates timed per ``ssgp-update-time`` trial."""
+
+
+STEP_SCALING: dict[str, str] = {
+    "step-vs-nodes": "LG nodes (receding interval)",
+    "step-vs-horizon": "horizon (ms)",
+    "step-vs-rank": "SSGP rank r (frequencies)",
+}
+"""The step-time scaling trial kinds and what their ``param`` is."""
 
 
 def _extra_seed(seed: int) -> int:
@@ -103,3 +116,43 @@ def run_update_time(spec: TrialSpec) -> dict[str, Any]:
         "updates": len(times),
     }
     return {"metrics": metrics, "arrays": {"update_time": times}}
+
+
+def run_step_scaling(spec: TrialSpec) -> dict[str, Any]:
+    """One MPC recipe's step time with one setting changed (:data:`STEP_SCALING`)."""
+    from gp_agents import online_ssgp
+
+    if spec.kind not in STEP_SCALING:
+        raise ValueError(f"unknown step-scaling kind {spec.kind!r}; known: {list(STEP_SCALING)}")
+    if spec.param is None or int(spec.param) < 1:
+        raise ValueError(f"{spec.kind} needs param >= 1, got {spec.param}")
+    value = int(spec.param)
+    settings: dict[str, Any] = {}
+    learner = None
+    if spec.kind == "step-vs-nodes":
+        settings["n_nodes"] = value
+    elif spec.kind == "step-vs-horizon":
+        settings["horizon"] = value / 1000.0
+    else:
+        learner = online_ssgp(value)
+    env = make_env(spec.env, spec.scenario)
+    built = build_controller(spec.controller, env, spec.env, spec.seed, spec.n_init,
+                             settings=settings, learner=learner)
+    agent = built.agent
+    episode = rollout(env, agent, spec.seed, max_steps=spec.max_steps)
+    act = np.asarray(episode.act_times[1:], float)
+    planner = agent.planner
+    metrics = {
+        "act_median_ms": 1e3 * float(np.median(act)),
+        "act_p95_ms": 1e3 * float(np.percentile(act, 95)),
+        "steps": len(episode.act_times),
+        "success": bool(episode.final_info["success"]),
+        "cost": episode.cost,
+        "solver_failures": int(agent.n_failures),
+        "rti_rejected": int(getattr(planner, "n_rti_rejected", 0)),
+        "mesh": agent.mesh.describe(),
+        "horizon_s": float(agent.horizon),
+        "rank": int(getattr(agent.learner, "n_frequencies", 0)),
+    }
+    env.close()
+    return {"metrics": metrics, "arrays": {"act_time": act}}

@@ -23,7 +23,9 @@ Speed variants of ``ssgp-mpc`` (:data:`SPEED_VARIANTS`, presets ``speed-options`
 ``ssgp-mpc-linearized-model-inputs`` (both).
 
 Real-time-iteration variants (:data:`RTI_VARIANTS`, preset ``rti``): ``nominal-mpc-rti``,
-``oracle-mpc-rti``, ``ssgp-mpc-rti`` (``scheme="rti"``; the SSGP one with the GP linearized).
+``oracle-mpc-rti``, ``ssgp-mpc-rti`` (``scheme="rti"``; the SSGP one with the GP linearized);
+and their converged references warm-started with the previous multipliers
+(:data:`WARM_DUAL_VARIANTS`): ``nominal-mpc-warm-duals``, ``oracle-mpc-warm-duals``.
 
 RL recipes load the shipped stable-baselines3 policies from ``benchmarks/models/<env>/<algo>/``
 (:class:`gp_agents.rl.RLAgent`; package data, so a non-editable install has them); a missing
@@ -193,11 +195,23 @@ RTI_VARIANTS: dict[str, ControllerRecipe] = dict([
 ])
 """Real-time-iteration variants (issue: RTI), compared by the ``rti`` preset."""
 
+WARM_DUAL_VARIANTS: dict[str, ControllerRecipe] = {
+    f"{base}-mpc-warm-duals": ControllerRecipe(
+        f"{base}-mpc-warm-duals", f"{label} MPC, warm duals", "mpc",
+        f"{base}-mpc whose converged IPOPT solves also start from the previous solve's "
+        "multipliers with IPOPT's warm-start options (warm_start_duals=True): the fastest "
+        "converged reference for the RTI's step-time ratios", oracle=base == "oracle",
+        settings=(("warm_start_duals", True),))
+    for base, label in (("nominal", "nominal"), ("oracle", "oracle"))}
+"""Converged recipes warm-started with the previous multipliers (the ``rti`` preset's second,
+faster converged reference)."""
+
 
 CONTROLLERS: dict[str, ControllerRecipe] = {
     **_mpc_recipes(),
     **SPEED_VARIANTS,
     **RTI_VARIANTS,
+    **WARM_DUAL_VARIANTS,
     "sac": ControllerRecipe("sac", "SAC", "rl", "shipped stable-baselines3 SAC policy",
                             algo="sac"),
     "ppo": ControllerRecipe("ppo", "PPO", "rl", "shipped stable-baselines3 PPO policy",
@@ -284,7 +298,8 @@ def make_learner(kind: str) -> Any:
 def build_controller(name: str, env: gym.Env, env_name: str, seed: int,
                      n_init: int = N_INITIAL_POINTS, *, data_env: gym.Env | None = None,
                      settings: dict[str, Any] | None = None,
-                     options: dict[str, Any] | None = None) -> BuiltController:
+                     options: dict[str, Any] | None = None,
+                     learner: Any | None = None) -> BuiltController:
     """Build controller ``name`` for ``env`` and reset ``env`` with ``seed``.
 
     Learning recipes first collect ``n_init`` transitions with
@@ -300,6 +315,8 @@ def build_controller(name: str, env: gym.Env, env_name: str, seed: int,
         data_env: the env the initial data are collected on (default ``env``).
         settings: extra :class:`gp_agents.PseudospectralMPC` settings (MPC recipes only).
         options: ``env.reset`` options of the episode (e.g. a start state).
+        learner: an unfitted learner used instead of the recipe's (learning recipes only; e.g.
+            ``online_ssgp(r)`` for another rank).
 
     Raises:
         UnknownNameError: unknown controller name.
@@ -311,11 +328,14 @@ def build_controller(name: str, env: gym.Env, env_name: str, seed: int,
         return _build_rl(recipe, env, env_name, seed, options)
     from gp_agents import PseudospectralMPC, collect_initial_data
 
+    if learner is not None and recipe.learner is None:
+        raise ValueError(f"controller {name!r} learns nothing: it takes no learner")
     data = None
     if recipe.learner is not None:
         data = collect_initial_data(data_env or env, n_init, seed=seed)
     obs, _ = env.reset(seed=seed, options=options)
-    learner = make_learner(recipe.learner) if recipe.learner is not None else None
+    if learner is None and recipe.learner is not None:
+        learner = make_learner(recipe.learner)
     source = OracleModel(env) if recipe.oracle else None
     agent = PseudospectralMPC.from_env(env, learner, model_source=source, mode=recipe.mode,
                                        learn_online=recipe.learn_online,

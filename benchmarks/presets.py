@@ -135,22 +135,52 @@ def sample_efficiency(seeds: Sequence[int] = (0, 1, 2, 3, 4)) -> Experiment:
         ("sample_efficiency", "summary"))
 
 
+STEP_SCALING_CONTROLLERS = ("nominal-mpc", "nominal-mpc-rti", "ssgp-mpc-linearized",
+                            "ssgp-mpc-rti")
+"""The converged and RTI recipes (nominal and SSGP with the GP linearized per node) of the
+compute preset's scaling table."""
+STEP_SCALING_GRID: dict[str, tuple[int, ...]] = {
+    "step-vs-nodes": (6, 10, 16, 24),
+    "step-vs-horizon": (1000, 1500, 2000, 3000),
+    "step-vs-rank": (25, 50, 100, 200),
+}
+"""Values of each step-scaling trial kind (:data:`benchmarks.compute.STEP_SCALING`)."""
+STEP_SCALING_STEPS = 40
+"""Closed-loop periods timed per scaling trial."""
+
+
 def compute(act_samples: Sequence[int] = (200, 1000, 5000),
             ranks: Sequence[int] = (25, 50, 100, 200)) -> Experiment:
-    """Per-step compute of every controller; SSGP-MPC scaling with samples and rank."""
+    """Per-step compute of every controller; SSGP-MPC scaling with samples and rank; the
+    converged and RTI step time against LG nodes, horizon, rank r and samples learned."""
     pairs = [(e, ENVS[e].default_scenario) for e in ENVS]
     specs = episodes((*MPC_RECEDING, *MPC_EPISODIC, "sac", "ppo"), pairs, (0,))
     specs += tuple(TrialSpec("ssgp-act-scaling", "cartpole", "online", "ssgp-mpc", 0, param=n)
                    for n in act_samples)
+    specs += tuple(TrialSpec("ssgp-act-scaling", env, scenario, c, 0, param=n)
+                   for env, scenario in (("cartpole", "gp"), ("quadrotor", "gp"))
+                   for c in ("ssgp-mpc-linearized", "ssgp-mpc-rti") for n in (200, 5000))
     specs += tuple(TrialSpec("ssgp-update-time", "cartpole", "online", "ssgp", 0, param=r)
                    for r in ranks)
+    specs += tuple(TrialSpec(kind, env, scenario, c, 0, param=v, max_steps=STEP_SCALING_STEPS)
+                   for env, scenario in (("cartpole", "gp"), ("quadrotor", "gp"))
+                   for kind, values in STEP_SCALING_GRID.items()
+                   for c in STEP_SCALING_CONTROLLERS
+                   if kind != "step-vs-rank" or c.startswith("ssgp")
+                   for v in values)
     return Experiment(
         "compute", "Compute: per-step time",
         "Wall-clock time of each `act` call (one core, `OMP_NUM_THREADS=1`, seed 0, each env's "
         "default scenario); episodic controllers solve once at the first step and then replay. "
         "SSGP-MPC step time after learning 200 / 1,000 / 5,000 samples (extra samples fed with "
-        "`IncrementalSSGP.update`), and the single-sample update time against the rank r.",
-        specs, ("step_times", "scaling", "update_time"))
+        "`IncrementalSSGP.update`), and the single-sample update time against the rank r. "
+        "The scaling table: the converged and RTI step (nominal, and the SSGP with the GP "
+        "linearized per node) on the cart pole and quadrotor `gp` (where the nominal RTI's "
+        "steps are mostly accepted: on the cart pole `online` its QP is infeasible at most "
+        "steps), against the LG "
+        "nodes of the receding interval, the horizon, the rank r and 200 vs 5,000 samples "
+        f"learned (one setting changed at a time, {STEP_SCALING_STEPS} periods, seed 0).",
+        specs, ("step_times", "scaling", "step_scaling", "update_time"))
 
 
 def peers(seeds: Sequence[int] = tuple(range(10))) -> Experiment:
@@ -224,7 +254,8 @@ def linearized(seeds: Sequence[int] = tuple(range(10)),
         specs, ("acceptance", "summary", "step_times", "scaling"))
 
 
-RTI_CONTROLLERS = ("nominal-mpc", "nominal-mpc-rti", "ssgp-mpc", "ssgp-mpc-rti")
+RTI_CONTROLLERS = ("nominal-mpc", "nominal-mpc-warm-duals", "nominal-mpc-rti", "ssgp-mpc",
+                   "ssgp-mpc-rti")
 """The converged and real-time-iteration recipes the ``rti`` preset compares."""
 
 
@@ -232,7 +263,7 @@ def rti(seeds: Sequence[int] = tuple(range(10)),
         dubins_seeds: Sequence[int] = tuple(range(50)),
         act_samples: Sequence[int] = (200, 5000)) -> Experiment:
     """The MPC acceptance runs with the real-time iteration next to the converged MPC."""
-    specs = episodes((*RTI_CONTROLLERS, "oracle-mpc", "oracle-mpc-rti"),
+    specs = episodes((*RTI_CONTROLLERS, "oracle-mpc", "oracle-mpc-warm-duals", "oracle-mpc-rti"),
                      [("cartpole", "online")], seeds)
     specs += episodes(RTI_CONTROLLERS, [("quadrotor", "gp"), ("quadrotor", "online")], seeds)
     specs += episodes(RTI_CONTROLLERS, [("dubins", "paper")], dubins_seeds)
@@ -244,11 +275,13 @@ def rti(seeds: Sequence[int] = tuple(range(10)),
         "rti", "Real-time iteration against the converged MPC",
         "The MPC acceptance runs (cart pole `online` and quadrotor `gp`/`online` on 10 seeds, "
         "Dubins on 50) for the nominal, oracle (cart pole) and SSGP-MPC, each converged "
-        "(`scheme='converged'`) and as a real-time iteration (`scheme='rti'`: a converged "
-        "cold start, then one Gauss-Newton SQP step per period; the SSGP one with the GP "
-        "linearized per node at the shifted plan), all in one run so that the step-time "
-        "ratios compare like with like; and the SSGP RTI's step time after learning 200 vs "
-        "5,000 samples. Targets: nominal RTI step at most 0.15x the converged one; SSGP RTI "
+        "(`scheme='converged'`; nominal and oracle also with warm-started multipliers, "
+        "`warm_start_duals=True`, the faster converged reference) and as a real-time "
+        "iteration (`scheme='rti'`: a converged cold start, then one Gauss-Newton SQP step "
+        "per period; the SSGP one with the GP linearized per node at the shifted plan), all "
+        "in one run so that the step-time ratios compare like with like; and the SSGP RTI's "
+        "step time after learning 200 vs 5,000 samples. Targets: nominal RTI step at most "
+        "0.15x the converged one (reported against both converged references); SSGP RTI "
         "at most 1.5x the nominal RTI; the same successes as the converged MPC.",
         specs, ("acceptance", "summary", "step_times", "scaling"))
 

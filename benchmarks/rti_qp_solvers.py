@@ -2,10 +2,14 @@
 each system's :class:`gp_envs.systems.PlanningDefaults`).
 
 The nominal MPC with ``scheme="rti"``, one agent per QP solver, all in lockstep on envs reset
-with the same seed (so a change of the machine's load slows them alike): closed-loop cost,
-rejected steps and the median RTI step. Run (one core)::
+with the same seed (so a change of the machine's load slows them alike), on tuning seeds
+(default 100-102, disjoint from every preset's evaluation seeds): closed-loop cost, the steps
+the safety net rejected (a failed or inaccurate QP: each costs a converged solve), the median
+accepted RTI step and the 90th percentile of every replanning ``act`` (rejections included).
+A median alone hides a solver that is fast on easy QPs and slow or failing on the hard ones.
+Run (one core)::
 
-    OMP_NUM_THREADS=1 python -m benchmarks.rti_qp_solvers [--systems cartpole,dubins]
+    OMP_NUM_THREADS=1 python -m benchmarks.rti_qp_solvers [--systems dubins] [--seeds 100,101]
 """
 
 from __future__ import annotations
@@ -22,9 +26,10 @@ import gp_envs
 from gp_agents import PseudospectralMPC
 from gp_agents.agent import rollout_lockstep
 
-SOLVERS = ("osqp", "proxqp", "qrqp")
+SOLVERS = ("osqp", "proxqp", "qrqp", "piqp", "qpoases")
 SCENARIOS = {"cartpole": "gp", "quadrotor": "gp", "dubins": "paper"}
 """Scenario per system (the peers' cart-pole scenario; others: the system's default)."""
+TUNING_SEEDS = (100, 101, 102)
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -32,25 +37,48 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--systems", default=",".join(gp_envs.SYSTEMS),
                         help="comma-separated system names (default: all registered)")
+    parser.add_argument("--seeds", default=",".join(map(str, TUNING_SEEDS)),
+                        help="comma-separated env seeds (default: the tuning seeds 100-102)")
+    parser.add_argument("--solvers", default=",".join(SOLVERS),
+                        help=f"comma-separated CasADi QP plugins (default: {','.join(SOLVERS)})")
     args = parser.parse_args(argv)
     names = [n for n in args.systems.split(",") if n]
     unknown = sorted(set(names) - set(gp_envs.SYSTEMS))
     if unknown or not names:
         parser.error(f"unknown or no system(s) {unknown}; registered: {list(gp_envs.SYSTEMS)}")
-    print("| env | QP solver | cost | rejected steps | median RTI step (ms) |")
-    print("|---|---|---:|---:|---:|")
+    try:
+        seeds = [int(s) for s in args.seeds.split(",") if s]
+    except ValueError:
+        parser.error(f"--seeds must be comma-separated integers, got {args.seeds!r}")
+    solvers = [s for s in args.solvers.split(",") if s]
+    missing = [s for s in solvers if not __import__("casadi").has_conic(s)]
+    if missing or not solvers:
+        parser.error(f"QP solver plugin(s) not available in this CasADi: {missing}")
+    print(f"Seeds {', '.join(map(str, seeds))}; cost: mean over the seeds; steps pooled.\n")
+    print("| env | QP solver | cost | rejected / RTI steps | median RTI step (ms) | "
+          "p90 replanning act (ms) |")
+    print("|---|---|---:|---:|---:|---:|")
     for name in names:
         system = gp_envs.SYSTEMS[name]
         env_id, scenario = system.env_id, SCENARIOS.get(name, system.default_scenario)
-        pairs = []
-        for qp in SOLVERS:
-            env = gym.make(env_id, scenario=scenario)
-            pairs.append((env, PseudospectralMPC.from_env(env, scheme="rti", qp_solver=qp)))
-        for qp, (_, agent), ep in zip(SOLVERS, pairs, rollout_lockstep(pairs, 0), strict=True):
-            d = agent.diagnostics_arrays()
-            step = d["solve_time"][d["status"] == "RTI"]
-            print(f"| {env_id} | {qp} | {ep.cost:.3f} | {agent.planner.n_rti_rejected} | "
-                  f"{1e3 * np.median(step):.2f} |", flush=True)
+        rows = {qp: dict(cost=[], rejected=0, steps=0, rti=[], act=[]) for qp in solvers}
+        for seed in seeds:
+            pairs = []
+            for qp in solvers:
+                env = gym.make(env_id, scenario=scenario)
+                pairs.append((env, PseudospectralMPC.from_env(env, scheme="rti", qp_solver=qp)))
+            for qp, (_, agent), ep in zip(solvers, pairs, rollout_lockstep(pairs, seed),
+                                          strict=True):
+                d, row = agent.diagnostics_arrays(), rows[qp]
+                row["cost"].append(ep.cost)
+                row["rejected"] += agent.planner.n_rti_rejected
+                row["steps"] += agent.planner.n_rti_steps
+                row["rti"].extend(d["solve_time"][d["status"] == "RTI"])
+                row["act"].extend(ep.act_times[1:])  # the first act builds the NLP
+        for qp, row in rows.items():
+            print(f"| {env_id} | {qp} | {np.mean(row['cost']):.3f} | "
+                  f"{row['rejected']} / {row['steps']} | {1e3 * np.median(row['rti']):.2f} | "
+                  f"{1e3 * np.quantile(row['act'], 0.9):.2f} |", flush=True)
 
 
 if __name__ == "__main__":

@@ -23,7 +23,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-RECEDING, EPISODIC, RTI = "-", "--", "-."
+RECEDING, EPISODIC, RTI, WARM_DUALS = "-", "--", "-.", ":"
 """Line styles of the three schemes."""
 
 
@@ -33,7 +33,8 @@ class Style:
 
     Attributes:
         color: matplotlib colour.
-        linestyle: matplotlib line style (:data:`RECEDING`, :data:`EPISODIC`, :data:`RTI`).
+        linestyle: matplotlib line style (:data:`RECEDING`, :data:`EPISODIC`, :data:`RTI`,
+            :data:`WARM_DUALS`).
         marker: matplotlib marker, unique per recipe.
         linewidth: line width in points.
         zorder: drawing order (higher on top).
@@ -78,9 +79,11 @@ STYLES: dict[str, Style] = {
     "nominal-mpc": Style(_NOMINAL, RECEDING, "o", linewidth=2.2, zorder=2.0),
     "nominal-episodic": Style(_NOMINAL, EPISODIC, "s", linewidth=2.2, zorder=2.0),
     "nominal-mpc-rti": Style(_NOMINAL, RTI, "p", linewidth=2.2, zorder=2.0),
+    "nominal-mpc-warm-duals": Style(_NOMINAL, WARM_DUALS, "4", linewidth=2.2, zorder=2.0),
     "oracle-mpc": Style(_ORACLE, RECEDING, "x", linewidth=1.0, zorder=5.0),
     "oracle-episodic": Style(_ORACLE, EPISODIC, "+", linewidth=1.0, zorder=5.0),
     "oracle-mpc-rti": Style(_ORACLE, RTI, "1", linewidth=1.0, zorder=5.0),
+    "oracle-mpc-warm-duals": Style(_ORACLE, WARM_DUALS, "3", linewidth=1.0, zorder=5.0),
     "gp-mpc": Style(_GP, RECEDING, "D"),
     "gp-episodic": Style(_GP, EPISODIC, "d"),
     "ssgp-mpc": Style(_SSGP, RECEDING, "^"),

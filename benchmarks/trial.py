@@ -363,6 +363,9 @@ JOB_KINDS: dict[str, Callable[[TrialSpec], dict[str, Any]]] = {
     "episode": run_episode,
     "ssgp-act-scaling": _lazy("benchmarks.compute", "run_act_scaling"),
     "ssgp-update-time": _lazy("benchmarks.compute", "run_update_time"),
+    "step-vs-nodes": _lazy("benchmarks.compute", "run_step_scaling"),
+    "step-vs-horizon": _lazy("benchmarks.compute", "run_step_scaling"),
+    "step-vs-rank": _lazy("benchmarks.compute", "run_step_scaling"),
     "peers": _lazy("benchmarks.peers", "run_peers"),
 }
 """Trial kinds and the function that runs each."""

@@ -5,12 +5,18 @@ from __future__ import annotations
 import shutil
 import subprocess
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 
 from benchmarks.cli import build_parser, main, parse_seeds, resolve
-from benchmarks.controllers import UnknownNameError, check_env_scenario
+from benchmarks.controllers import (
+    UnknownNameError,
+    build_controller,
+    check_env_scenario,
+    make_env,
+)
 from benchmarks.presets import PRESETS, get_preset
 from benchmarks.readme_table import readme_table
 from benchmarks.runner import is_finished, load_record, run_trials, save_trial, trial_path
@@ -174,3 +180,27 @@ def test_linearized_preset_reports_speed_ratios_expansion_errors_and_scaling(
     assert "error of the per-node expansion" in report
     assert "| quadrotor | gp | SSGP MPC, linearized | 5000 |" in report  # samples learned
     assert (tmp_path / "linearized_ssgp_act_scaling.png").is_file()
+
+
+@pytest.mark.parametrize(("kind", "controller", "param", "check"), [
+    ("step-vs-nodes", "nominal-mpc-rti", 6, lambda m: "x 6 nodes" in m["mesh"]),
+    ("step-vs-horizon", "nominal-mpc", 1000, lambda m: m["horizon_s"] == 1.0),
+    ("step-vs-rank", "ssgp-mpc-rti", 25, lambda m: m["rank"] == 25),
+])
+def test_step_scaling_trials_change_exactly_their_setting(
+        kind: str, controller: str, param: int, check: Any) -> None:
+    out = execute(TrialSpec(kind, "cartpole", "gp", controller, 0, param=param, max_steps=2))
+    assert out["status"] == "ok", out["message"]
+    m = out["metrics"]
+    assert check(m) and m["steps"] == 2 and m["act_median_ms"] > 0
+    # the other settings stay the recipe's defaults
+    if kind != "step-vs-nodes":
+        assert "x 16 nodes" in m["mesh"]
+
+
+def test_a_nominal_recipe_takes_no_learner() -> None:
+    from gp_agents import online_ssgp
+
+    env = make_env("cartpole", "gp")
+    with pytest.raises(ValueError, match="learns nothing"):
+        build_controller("nominal-mpc", env, "cartpole", 0, learner=online_ssgp(10))

@@ -580,7 +580,10 @@ def test_incremental_linear_equals_batch(lam, m, data, exact_gp):
         ages = _simulated_prior_ages(len(Z), F.shape[1], m)
         A = F.T @ (wts[:, None] * F) + np.diag(hyp.noise_std[j] ** 2 * lam**ages)
         w = np.linalg.solve(A, F.T @ (wts * Ys[:, j]))
-        np.testing.assert_allclose(model.weights_[j], w, rtol=1e-7, atol=1e-8 * np.abs(w).max())
+        # the normal equations are ill-conditioned (cond(A) ~ 1e7-1e9 here): both solutions
+        # carry an error of about cond(A) * eps, so that is the tolerance, not a fixed one
+        tol = 10 * np.linalg.cond(A) * np.finfo(float).eps * np.abs(w).max()
+        assert np.abs(model.weights_[j] - w).max() <= tol
 
 
 def _check_export(fn: ca.Function, model, Z: np.ndarray) -> None:

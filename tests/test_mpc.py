@@ -110,21 +110,28 @@ def test_model_inputs_are_the_states_the_parametric_model_depends_on():
 
 
 def test_nominal_hessian_gives_the_exact_hessians_plan():
-    """hessian='nominal' changes IPOPT's iterates, not the optimum it converges to."""
+    """hessian='nominal' changes IPOPT's iterates, not the optimality conditions: its plan is
+    a KKT point of the exact NLP, so the exact-Hessian IPOPT started there (with its
+    multipliers) stays there. (Started from the same cold guess, the two may well end in
+    different local optima of the swing-up: the iterates differ.)"""
     env = gym.make(CART, scenario="online")
     data = collect_initial_data(env, 200, seed=0)
-    plans = {}
+    agents = {}
     for hessian in ("exact", "nominal"):
         agent = PseudospectralMPC.from_env(env, online_ssgp(),
                                            learned_dynamics=GPInNLP(hessian=hessian),
-                                           input_indices="model")
+                                           input_indices="model", warm_start_duals=True)
         agent.pretrain(data)
         obs, _ = env.reset(seed=0)
         agent.act(obs)
         assert agent.diagnostics[-1].success
-        plans[hessian] = agent.diagnostics[-1].plan_x
-    assert agent.residual.n_inputs == 5
-    np.testing.assert_allclose(plans["nominal"], plans["exact"], atol=1e-6)
+        agents[hessian] = agent
+    assert agents["exact"].residual.n_inputs == 5
+    nominal, ocp = agents["nominal"].plan.solution, agents["exact"].planner.ocp
+    again = ocp.solve(p=agents["exact"].planner.planning.param_values(), x0=obs,
+                      initial_guess=nominal, multipliers=(nominal.nlp_lam_x, nominal.nlp_lam_g))
+    assert again.success and again.iterations <= 3
+    np.testing.assert_allclose(again.nlp_x, nominal.nlp_x, atol=1e-6)
 
 
 @pytest.mark.parametrize("env_id", [CART, QUAD])
@@ -463,6 +470,38 @@ def test_rti_tracks_the_converged_mpc_and_its_safety_net_falls_back_to_it():
     assert fallback.cost == pytest.approx(converged.cost, rel=1e-3)
     with pytest.raises(ValueError, match="scheme"):
         PseudospectralMPC.from_env(env, scheme="sometimes")
+
+
+def test_a_qp_plugin_that_raises_is_a_rejected_step_not_a_crash():
+    env = gym.make(CART, scenario="gp")
+    obs, _ = env.reset(seed=0)
+    agent = PseudospectralMPC.from_env(env, scheme="rti")
+    obs, *_ = env.step(agent.act(obs))
+    planner = agent.planner
+
+    def raising(*args):
+        raise RuntimeError("Problem in osqp_update_P_A")
+
+    planner._step = raising
+    action = agent.act(obs)
+    assert planner.n_rti_rejected == planner.n_rti_steps == 1
+    assert np.all(np.isfinite(action))
+    assert agent.diagnostics_arrays()["status"][-1].startswith("RTI rejected (inf)")
+
+
+def test_warm_started_multipliers_cut_ipopt_iterations_at_the_same_closed_loop():
+    """``warm_start_duals=True``: the converged solves start from the previous multipliers
+    with IPOPT's warm-start options (the RTI's fallback does so by default)."""
+    env = gym.make(CART, scenario="gp")
+    cold = PseudospectralMPC.from_env(env)
+    warm = PseudospectralMPC.from_env(env, warm_start_duals=True)
+    episodes = [rollout(env, agent, 0, max_steps=40) for agent in (cold, warm)]
+    assert not cold.planner.warm_start_duals and warm.planner.warm_start_duals
+    assert PseudospectralMPC.from_env(env, scheme="rti")._planner().warm_start_duals
+    iterations = [np.median(a.diagnostics_arrays()["iterations"][1:]) for a in (cold, warm)]
+    assert iterations[1] < iterations[0]
+    assert episodes[1].cost == pytest.approx(episodes[0].cost, rel=0.05)
+    assert warm.n_failures == cold.n_failures == 0
 
 
 # ------------------------------------------------------------------------ copies

@@ -21,7 +21,16 @@ from benchmarks import report
 from benchmarks.cli import main
 from benchmarks.controllers import CONTROLLERS, ENVS
 from benchmarks.report import Trial
-from benchmarks.styles import EPISODIC, RECEDING, RTI, STYLES, axis_label, style, unit
+from benchmarks.styles import (
+    EPISODIC,
+    RECEDING,
+    RTI,
+    STYLES,
+    WARM_DUALS,
+    axis_label,
+    style,
+    unit,
+)
 from benchmarks.trial import TrialSpec
 
 
@@ -73,19 +82,22 @@ def test_every_recipe_has_one_fixed_distinct_style() -> None:
     assert len(set(markers)) == len(markers)  # points-only plots tell them apart too
     # receding-horizon recipes of different models never share a colour
     receding = [c for c, r in CONTROLLERS.items()
-                if r.mode == "receding" and ("scheme", "rti") not in r.settings]
+                if r.mode == "receding" and ("scheme", "rti") not in r.settings
+                and ("warm_start_duals", True) not in r.settings]
     colours = [style(c).color for c in receding]
     assert len(set(colours)) == len(colours)
     assert style("ssgp-mpc").color != style("ssgp-mpc-linearized").color
     for name, recipe in CONTROLLERS.items():
         expected = (RTI if ("scheme", "rti") in recipe.settings
+                    else WARM_DUALS if ("warm_start_duals", True) in recipe.settings
                     else EPISODIC if recipe.mode == "episodic" else RECEDING)
         assert style(name).linestyle == expected, name
         if recipe.mode == "episodic":  # same model, same colour
             assert style(name).color == style(f"{recipe.base}-mpc").color
     # the nominal is drawn thick and underneath the thin oracle: both visible where they meet
     for nominal, oracle in (("nominal-mpc", "oracle-mpc"), ("nominal-episodic", "oracle-episodic"),
-                            ("nominal-mpc-rti", "oracle-mpc-rti")):
+                            ("nominal-mpc-rti", "oracle-mpc-rti"),
+                            ("nominal-mpc-warm-duals", "oracle-mpc-warm-duals")):
         assert style(nominal).zorder < style(oracle).zorder
         assert style(nominal).linewidth >= 2 * style(oracle).linewidth
     with pytest.raises(KeyError, match="no plot style"):
@@ -249,3 +261,25 @@ def test_a_tiny_real_run_draws_the_control_period_units_and_the_dubins_paths(
                if not str(line.get_label()).startswith("_")}
     assert colours == {"nominal MPC": style("nominal-mpc").color,
                        "oracle MPC": style("oracle-mpc").color}
+
+
+def test_step_scaling_figure_has_a_line_per_recipe_at_the_values_run_and_the_period() -> None:
+    rows = [{"measurement": kind, "env": "cartpole", "scenario": "gp", "controller": c,
+             "param": v, "act_median_ms": 1.0 + v / 100, "solver_failures": 0,
+             "rti_rejected": 0}
+            for kind, values in (("step-vs-nodes", (24, 6, 10)), ("step-vs-rank", (25, 50)))
+            for c in ("nominal-mpc-rti", "ssgp-mpc-rti")
+            if kind != "step-vs-rank" or c.startswith("ssgp")
+            for v in values]
+    fig = report.step_scaling_figure(rows)
+    nodes, rank = fig.axes
+    lines = _lines_by_label(nodes)
+    assert list(lines["nominal MPC, RTI"].get_xdata()) == [6, 10, 24]  # sorted
+    assert lines["nominal MPC, RTI"].get_linestyle() == RTI
+    assert lines["SSGP MPC, RTI"].get_color() == style("ssgp-mpc-rti").color
+    assert set(_lines_by_label(rank)) >= {"SSGP MPC, RTI"}
+    assert "nominal MPC, RTI" not in _lines_by_label(rank)
+    for ax in (nodes, rank):
+        (period,) = _control_period_lines(ax)
+        assert np.allclose(period.get_ydata(), 1e3 * _dt("cartpole"))
+    assert "nodes" in nodes.get_xlabel() and "(ms)" in nodes.get_ylabel()

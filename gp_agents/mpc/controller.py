@@ -88,6 +88,13 @@ class PseudospectralMPC:
             :class:`~gp_agents.mpc.rti.RTIPlanner`).
         qp_solver: the RTI step's QP solver (default per system, chosen by measurement:
             :func:`~gp_agents.mpc.schedule.planning_defaults`).
+        warm_start_duals: a warm IPOPT solve also starts from the previous solve's multipliers
+            with IPOPT's warm-start options (:class:`~gp_agents.mpc.planner.Planner`). None: off
+            for ``"converged"``, on for the RTI's fallback solves. Measured (``rti`` preset,
+            ``benchmarks/results/rti/report.md``): about half the converged step on the
+            quadrotor and Dubins vehicle at the same closed-loop costs, but 3-4% higher costs
+            for the oracle cart pole (the small initial barrier keeps IPOPT in the previous
+            plan's basin of the swing-up), so the converged default stays off.
     """
 
     def __init__(self, model: ControlModel, learner: Any | None = None, *,
@@ -102,7 +109,7 @@ class PseudospectralMPC:
                  state_margin: float = 0.05, state_penalty: float | None = 1e4,
                  obstacle_margin: float = 0.1, jit: bool = False,
                  scheme: Literal["converged", "rti"] = "converged",
-                 qp_solver: str | None = None) -> None:
+                 qp_solver: str | None = None, warm_start_duals: bool | None = None) -> None:
         if not isinstance(model, ControlModel):
             raise TypeError(f"model must be a gp_envs ControlModel, got {type(model).__name__}")
         defaults = planning_defaults(model)
@@ -128,6 +135,7 @@ class PseudospectralMPC:
             raise ValueError(f"scheme must be 'converged' or 'rti', got {scheme!r}")
         self.scheme = scheme
         self.qp_solver = qp_solver or (defaults.qp_solver if defaults else "osqp")
+        self.warm_start_duals = None if warm_start_duals is None else bool(warm_start_duals)
         if isinstance(learned_dynamics, str):
             if learned_dynamics not in LEARNED_TERMS:
                 raise ValueError(f"learned_dynamics must be one of {list(LEARNED_TERMS)} or a "
@@ -251,7 +259,9 @@ class PseudospectralMPC:
         size = self.term.param_values().size  # raises RuntimeError for an unfitted learner
         planning = self.planner.planning if self.planner is not None else None
         if planning is None or size != planning.n_params - planning.n_nominal:
-            extra = {"qp_solver": self.qp_solver} if self.scheme == "rti" else {}
+            extra: dict[str, Any] = {"qp_solver": self.qp_solver} if self.scheme == "rti" else {}
+            if self.warm_start_duals is not None:
+                extra["warm_start_duals"] = self.warm_start_duals
             self.planner = (RTIPlanner if self.scheme == "rti" else Planner)(
                 PlanningModel(self.model, self.residual, self.term), self.mesh,
                 self.constraints, solver=self.solver, solver_options=self.solver_options,

@@ -10,7 +10,11 @@ converged solve. The step, from the shifted plan ``w_s`` (its X(t0) the measured
     s.t.    lbg - g(w_s) <= J(w_s) dw <= ubg - g(w_s),   lbx <= w_s + dw <= ubx
 
 with ``H`` the Hessian of the objective alone (Gauss-Newton: the stage, terminal and soft-box
-costs are sums of squares, so ``H`` is positive semidefinite and the QP convex). The whole warm
+costs are sums of squares of functions that are linear between kinks, so ``H`` is positive
+semidefinite and the QP convex; the one exception is the soft obstacle margin,
+``(O_r + B_r + margin - |p - c|)^2`` while the plan is inside it, whose Hessian has a negative
+part from the curvature of ``|p - c|``: there the QP is nonconvex, which is why the Dubins
+vehicle's QP solver is the interior-point piqp, robust on those steps). The whole warm
 step (shift, angle alignment, fixing X(t0), the QP, the action) is one compiled CasADi
 function; Python passes the state and the learned term's numbers in, and gets the plan out.
 
@@ -18,12 +22,12 @@ A learned term enters as its per-node linearization at the shifted plan
 (:class:`~gp_agents.mpc.gp_linearized.LinearizedGP`: values and Jacobians as NLP parameters), so
 the QP has the nominal structure and the learner is evaluated once per node per period.
 
-**Safety net.** A step whose QP fails (a non-finite result) or whose plan violates the NLP's
-constraints by more than ``max_violation`` (defects in state units, path constraints in theirs,
-infinity norm) is replaced by a converged solve from the same shifted plan and the previous
-step's multipliers (the QP's, an SQP step's estimate of the NLP's) with IPOPT's warm-start
-options (the :class:`~gp_agents.mpc.planner.Planner`'s solve, with its retry and fallback to
-the previous plan).
+**Safety net.** A step whose QP fails (a non-finite result, or the QP plugin raised) or whose
+plan violates the NLP's constraints by more than ``max_violation`` (defects in state units,
+path constraints in theirs, infinity norm) is replaced by a converged solve from the same
+shifted plan and the previous step's multipliers (the QP's, an SQP step's estimate of the
+NLP's) with IPOPT's warm-start options (the :class:`~gp_agents.mpc.planner.Planner`'s solve,
+with its retry and fallback to the previous plan).
 Every such step is counted (``n_rti_rejected``). No wall-clock limit anywhere.
 """
 
@@ -51,6 +55,8 @@ QP_SOLVER_OPTIONS: dict[str, dict[str, Any]] = {
     "qrqp": {"print_iter": False, "print_header": False, "print_info": False},
     "hpipm": {"hpipm": {"iter_max": 100, "tol_stat": 1e-8, "tol_eq": 1e-8, "tol_ineq": 1e-8,
                         "tol_comp": 1e-8}},
+    "piqp": {"piqp": {"eps_abs": 1e-8, "eps_rel": 1e-9, "max_iter": 250, "verbose": False}},
+    "qpoases": {"printLevel": "none", "sparse": True},
 }
 """QP options per solver: tolerances tight enough that the step is the QP's solution (the
 iteration caps are counts, so the step is deterministic)."""
@@ -61,7 +67,7 @@ class RTIPlanner(Planner):
 
     Args:
         planning, mesh, constraints: as for :class:`Planner`.
-        qp_solver: CasADi conic plugin for the step's QP (``"osqp"``, ``"qrqp"``, ``"hpipm"``,
+        qp_solver: CasADi conic plugin for the step's QP (``"osqp"``, ``"qrqp"``, ``"piqp"``,
             ...; chosen per system by measurement,
             :func:`gp_agents.mpc.schedule.planning_defaults`).
         qp_options: CasADi options of that plugin (default :data:`QP_SOLVER_OPTIONS`).
@@ -79,7 +85,8 @@ class RTIPlanner(Planner):
         if not (np.isfinite(max_violation) and max_violation > 0):
             raise ValueError(f"max_violation must be > 0, got {max_violation}")
         self.qp_solver, self.max_violation = qp_solver, float(max_violation)
-        options = dict(QP_SOLVER_OPTIONS.get(qp_solver, {}) if qp_options is None else qp_options)
+        options = dict(QP_SOLVER_OPTIONS.get(qp_solver, {}) if qp_options is None
+                       else qp_options)
         options.setdefault("error_on_fail", False)
         self._shift, self._qp_step, self._step = self._build(options)
         self.n_rti_steps = self.n_rti_rejected = 0
@@ -95,8 +102,6 @@ class RTIPlanner(Planner):
         derivatives = ca.Function("rti_derivatives", [w, P],
                                   [g, J, ca.gradient(f, w), H]).expand()
         constraints = ca.Function("rti_g", [w, P], [g]).expand()
-        qp = ca.conic("rti_qp", self.qp_solver, {"h": H.sparsity(), "a": J.sparsity()},
-                      qp_options)
 
         # the shift: interpolants at the shifted times, angles moved by 2 pi k to start at the
         # measured ones, clipped into the bounds, X(t0) the measured state
@@ -110,6 +115,8 @@ class RTIPlanner(Planner):
             ws = ws + 2 * np.pi * turns * ca.DM(mask)
         ws = ca.vertcat(x0, ca.fmin(ca.fmax(ws[n:], lbx[n:]), ubx[n:]))
         shift = ca.Function("rti_shift", [w_prev, x0], [ws], ["w_prev", "x0"], ["w"])
+        qp = ca.conic("rti_qp", self.qp_solver, {"h": H.sparsity(), "a": J.sparsity()},
+                      qp_options)
 
         # the Gauss-Newton QP step and what it gives
         w_s, p = ca.MX.sym("w_s", n_w), ca.MX.sym("p", P.numel())
@@ -141,15 +148,19 @@ class RTIPlanner(Planner):
         term: LearnedTerm = self.planning.term
         p = self.planning.param_values()
         w_prev = previous.solution.nlp_x
-        if term.n_node_params():
-            ws = np.asarray(self._shift(w_prev, x)).ravel()
-            sol = self.ocp.solution_from_primal(ws, p, status="shifted", success=True)
-            q = term.node_param_values(sol.x_nodes, sol.u)
-            out = self._qp_step(ws, np.concatenate([p, q.ravel()]))
-        else:
-            out = self._step(w_prev, x, p)
-        w_new, _, violation, lam_g, lam_x = (np.asarray(v).ravel() for v in out)
-        violation = float(violation[0])
+        try:
+            if term.n_node_params():
+                ws = np.asarray(self._shift(w_prev, x)).ravel()
+                sol = self.ocp.solution_from_primal(ws, p, status="shifted", success=True)
+                q = term.node_param_values(sol.x_nodes, sol.u)
+                out = self._qp_step(ws, np.concatenate([p, q.ravel()]))
+            else:
+                out = self._step(w_prev, x, p)
+            w_new, _, violation, lam_g, lam_x = (np.asarray(v).ravel() for v in out)
+            violation = float(violation[0])
+        except RuntimeError:  # the QP plugin raised (e.g. osqp's "Problem in osqp_update_P_A")
+            w_new, violation = np.full(self.ocp.n_variables, np.nan), np.inf
+            lam_g = lam_x = w_new
         elapsed = time.perf_counter() - start
         self.n_rti_steps += 1
         if not (np.all(np.isfinite(w_new)) and violation <= self.max_violation):

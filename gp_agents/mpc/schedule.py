@@ -19,11 +19,14 @@ def planning_defaults(model: ControlModel) -> PlanningDefaults | None:
     horizon, LG nodes and intervals, nodes per episodic period, the RTI step's QP solver), or
     None for a model of an unregistered system (then the horizon must be given).
 
-    The QP solver defaults were chosen by measurement (``python -m benchmarks.rti_qp_solvers``,
-    ``benchmarks/results/rti_qp_solvers.md``): proxqp had the shortest median RTI step on the
-    cart pole, quadrotor and Dubins vehicle at the same closed-loop costs. hpipm cannot take the
-    pseudospectral NLP's structure (one dense LG interval is no stage-wise OCP); daqp needs a
-    positive definite Hessian.
+    The QP solver defaults were chosen by measurement on tuning seeds 100-102
+    (``python -m benchmarks.rti_qp_solvers``, ``benchmarks/results/rti_qp_solvers.md``): proxqp
+    has the shortest median RTI step and 90th percentile on the cart pole and quadrotor; on the
+    Dubins vehicle it is fast on easy QPs but slow or failing on the hard ones near the
+    obstacle (whose soft margin makes the objective's Hessian indefinite there), where piqp's
+    90th percentile of the step is 3.5x shorter at the same number of rejected steps (other
+    systems: their registration). hpipm cannot take the pseudospectral NLP's structure (one
+    dense LG interval is no stage-wise OCP); daqp needs a positive definite Hessian.
     """
     name = model.name
     return SYSTEMS[name].planning if name in SYSTEMS else None
