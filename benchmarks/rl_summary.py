@@ -130,6 +130,86 @@ def median_iqr_ci(values: list[float], n_boot: int = N_BOOT) -> dict[str, float]
             "ci_hi": float(hi), "n": int(x.size)}
 
 
+TRAINING_EVAL_SEEDS = range(1000, 1020)
+"""Reset seeds of the training evaluations (:mod:`benchmarks.train_rl`); the MPC references
+of the sample-efficiency table run on the same ones."""
+MPC_REFERENCES = ("oracle-mpc", "ssgp-mpc")
+COST_MARGIN = 1.1
+"""Criterion (ii) of the sample-efficiency table: a mean cost at most this times the oracle
+MPC's."""
+SUCCESS_BAR = 0.8
+"""Criterion (i): a success rate of at least this (the RL issue's acceptance bar)."""
+
+
+def mpc_references(env: str, scenario: str, seeds: range = TRAINING_EVAL_SEEDS
+                   ) -> dict[str, dict[str, float]]:
+    """The oracle and SSGP-MPC benchmark recipes on ``seeds``: success rate, mean cost and
+    the median env steps of data each used (initial data plus its own episode)."""
+    from benchmarks.trial import TrialSpec, run_episode
+
+    out = {}
+    for controller in MPC_REFERENCES:
+        ms = [run_episode(TrialSpec("episode", env, scenario, controller, s))["metrics"]
+              for s in seeds]
+        out[controller] = {"success_rate": float(np.mean([m["success"] for m in ms])),
+                           "mean_cost": float(np.mean([m["cost"] for m in ms])),
+                           "data_steps": float(np.median([m["data_steps"] for m in ms])),
+                           "episodes": len(ms)}
+    return out
+
+
+def first_step(curve: list[dict[str, float]], ok: Any) -> float:
+    """The first training-evaluation step whose row satisfies ``ok`` (NaN: none)."""
+    return next((c["timesteps"] for c in curve if ok(c)), float("nan"))
+
+
+def sample_efficiency_lines(runs: list[SeedRun], refs: dict[str, dict[str, float]],
+                            budget: int) -> list[str]:
+    """Env steps to (i) success >= 0.8 and (ii) cost within 10% of the oracle MPC's, per RL
+    seed (training evaluations) and for the SSGP-MPC, with the RL / SSGP-MPC ratio. A seed
+    that never met a criterion counts as more than the ``budget`` (censored: the median and
+    its interval are then lower bounds where they reach it)."""
+    oracle, ssgp = refs["oracle-mpc"], refs["ssgp-mpc"]
+    bound = COST_MARGIN * oracle["mean_cost"]
+    criteria = (("success rate >= 0.8", lambda c: c["success_rate"] >= SUCCESS_BAR,
+                 ssgp["success_rate"] >= SUCCESS_BAR),
+                (f"mean cost <= {bound:.2f} (1.1x the oracle MPC's {oracle['mean_cost']:.2f})",
+                 lambda c: c["mean_cost"] <= bound, ssgp["mean_cost"] <= bound))
+    n = len(TRAINING_EVAL_SEEDS)
+    censored = float(budget + 1)
+
+    def fmt(v: float) -> str:
+        return f"> {budget}" if v >= censored else f"{v:.0f}"
+
+    lines = ["### Sample efficiency", "",
+             f"Env steps each controller needed, on the training-evaluation reset seeds "
+             f"{TRAINING_EVAL_SEEDS.start}..{TRAINING_EVAL_SEEDS.stop - 1} ({n} episodes per "
+             "evaluation). RL: the first training evaluation meeting the criterion, one value "
+             f"per seed (a seed that never met it within its {budget} steps counts as more), "
+             "median and bootstrap 95% CI over the seeds. SSGP-MPC (`ssgp-mpc`, "
+             f"{ssgp['episodes']} episodes on the same reset seeds: success rate "
+             f"{ssgp['success_rate']:.2f}, mean cost {ssgp['mean_cost']:.2f}): the median env "
+             f"steps of data it used ({ssgp['data_steps']:.0f}: the initial data plus its own "
+             "episode), if it met the criterion.", "",
+             "| criterion | RL seeds that met it | RL env steps, median [95% CI] | SSGP-MPC env "
+             "steps | RL / SSGP-MPC |", "|---|---:|---|---:|---|"]
+    for label, ok, ssgp_ok in criteria:
+        steps = [first_step(r.curve, ok) for r in runs]
+        values = [v if np.isfinite(v) else censored for v in steps]
+        st = median_iqr_ci(values)
+        rl = fmt(st["median"]) + (f" [{fmt(st['ci_lo'])}, {fmt(st['ci_hi'])}]"
+                                  if st["n"] >= 2 else "")
+        mpc = f"{ssgp['data_steps']:.0f}" if ssgp_ok else "not met"
+        ratio = "n/a"
+        if ssgp_ok:
+            r = st["median"] / ssgp["data_steps"]
+            ratio = f"> {budget / ssgp['data_steps']:.0f}x" if st["median"] >= censored \
+                else f"{r:.0f}x"
+        met = sum(np.isfinite(v) for v in steps)
+        lines.append(f"| {label} | {met}/{len(runs)} | {rl} | {mpc} | {ratio} |")
+    return [*lines, ""]
+
+
 def _rel(path: Path) -> Path:
     """``path`` relative to the repository if it is inside it."""
     return path.relative_to(REPO) if path.is_relative_to(REPO) else path
@@ -204,7 +284,8 @@ def _fmt_stat(st: dict[str, float], fmt: str) -> tuple[str, str]:
     return iqr, ci
 
 
-def plan_section(name: str, plan: Plan, runs: list[SeedRun], png: str) -> list[str]:
+def plan_section(name: str, plan: Plan, runs: list[SeedRun], png: str,
+                 refs: dict[str, dict[str, float]] | None = None) -> list[str]:
     """Markdown for one plan (tables, figure)."""
     fin = [r for r in runs if r.finished]
     meta = fin[0].metadata if fin else None
@@ -270,6 +351,8 @@ def plan_section(name: str, plan: Plan, runs: list[SeedRun], png: str) -> list[s
             lines.append(f"| {int(s[i])} | {n_at[int(s[i])]} | {med[i]:.2f} | {cost[i]:.2f} | "
                          f"{dist[i]:.3f} |")
         lines.append("")
+    if refs and runs:
+        lines += sample_efficiency_lines(runs, refs, plan.steps)
     return lines
 
 
@@ -305,7 +388,8 @@ def write_summary(names: list[str], out: Path = OUT) -> Path:
         png = f"{name}_curves.png"
         if runs:
             plot_plan(name, plan, runs, out / png)
-        lines += plan_section(name, plan, runs, png)
+        refs = mpc_references(plan.env, plan.scenario) if runs else None
+        lines += plan_section(name, plan, runs, png, refs)
         for r in runs:
             if r.episodes:
                 m = policy_metrics(r.episodes)

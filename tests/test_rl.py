@@ -422,6 +422,31 @@ def test_median_iqr_ci() -> None:
     assert one["median"] == 0.5 and np.isnan(one["ci_lo"]) and np.isnan(one["ci_hi"])
 
 
+def test_sample_efficiency_counts_a_seed_that_never_gets_there_as_beyond_the_budget() -> None:
+    from benchmarks.rl_summary import SeedRun, sample_efficiency_lines
+
+    def run(seed: int, success: list[float], cost: list[float]) -> SeedRun:
+        curve = [{"timesteps": 100.0 * i, "success_rate": s, "mean_cost": c}
+                 for i, (s, c) in enumerate(zip(success, cost, strict=True))]
+        return SeedRun(seed, Path("."), curve, None)
+
+    refs = {"oracle-mpc": {"success_rate": 1.0, "mean_cost": 10.0, "data_steps": 50.0,
+                           "episodes": 20},
+            "ssgp-mpc": {"success_rate": 0.9, "mean_cost": 20.0, "data_steps": 50.0,
+                         "episodes": 20}}
+    runs = [run(0, [0, 0.9, 1], [30, 12, 10.5]), run(1, [0, 0, 0.8], [30, 20, 11]),
+            run(2, [0, 0, 0], [30, 30, 30])]
+    rows = [ln for ln in sample_efficiency_lines(runs, refs, 200) if ln.startswith("| ")][1:]
+    success, cost = (row.split(" | ") for row in rows)
+    assert success[1:3] == ["2/3", "200 [100, > 200]"]  # steps 100, 200 and "never"
+    assert success[3:] == ["50", "4x |"]
+    assert cost[1:3] == ["2/3", "200 [200, > 200]"]  # cost <= 11 at 200 (seeds 0, 1)
+    assert cost[3:] == ["not met", "n/a |"]  # the SSGP-MPC's 20 is not within 10% of 10
+    runs[0], runs[1] = run(0, [0, 0, 0], [30, 30, 30]), run(1, [0, 0, 0], [30, 30, 30])
+    success = next(ln for ln in sample_efficiency_lines(runs, refs, 200) if "0.8 |" in ln)
+    assert "| 0/3 | > 200 [> 200, > 200] | 50 | > 4x |" in success
+
+
 def test_summary_from_tiny_runs(sac_runs: dict, tmp_path: Path,
                                 monkeypatch: pytest.MonkeyPatch) -> None:
     import shutil
@@ -438,10 +463,14 @@ def test_summary_from_tiny_runs(sac_runs: dict, tmp_path: Path,
                 eval_freq=160, eval_episodes=1, checkpoint_freq=160, root=root,
                 description="tiny")
     monkeypatch.setitem(summary.PLANS, "tiny", plan)
+    refs = {c: {"success_rate": 1.0, "mean_cost": 13.0, "data_steps": 300.0, "episodes": 20}
+            for c in summary.MPC_REFERENCES}
+    monkeypatch.setattr(summary, "mpc_references", lambda env, scenario: refs)  # MPC: slow
     path = summary.write_summary(["tiny"], out=tmp_path / "out")
     text = path.read_text()
     assert "**2 finished**" in text and "1 not started" in text
     assert "| success rate |" in text and "BoundedShiftReward" in text
+    assert "### Sample efficiency" in text and "| success rate >= 0.8 | 0/2 | > 480 " in text
     with open(tmp_path / "out" / "tiny_final_eval.csv", newline="") as fh:
         rows = list(csv.DictReader(fh))
     assert len(rows) == 40 and sorted({int(r["episode_seed"]) for r in rows}) == list(range(20))
