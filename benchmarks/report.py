@@ -33,7 +33,14 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
-from matplotlib.ticker import FixedFormatter, FixedLocator, NullFormatter, NullLocator
+from matplotlib.ticker import (
+    FixedFormatter,
+    FixedLocator,
+    FormatStrFormatter,
+    LogLocator,
+    NullFormatter,
+    NullLocator,
+)
 
 from benchmarks.compute import STEP_SCALING
 from benchmarks.controllers import CONTROLLERS, ENVS, MODELS_DIR
@@ -821,14 +828,18 @@ def step_scaling_figure(rows: Sequence[dict[str, Any]]) -> Any:
                              if r["controller"] == c)
                 ax.plot(*zip(*pts, strict=True), **_style(c).line(len(pts), len(pts)),
                         label=_label(c))
-            period = _control_period_line(ax, _env_model(env, scenario).dt)
+            _control_period_line(ax, _env_model(env, scenario).dt)
             ax.set_yscale("log")
+            ax.yaxis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
+            ax.yaxis.set_major_formatter(FormatStrFormatter("%g"))
+            ax.yaxis.set_minor_formatter(NullFormatter())
+            ax.set_xticks(sorted({r["param"] for r in mine}))
             ax.set_xlabel(STEP_SCALING[kind])
             ax.set_ylabel("act median (ms)")
             ax.set_title(f"{env} `{scenario}`", fontsize=9)
             ax.grid(alpha=0.3)
             if i == 0 and j == 0:
-                ax.legend(handles=[*ax.get_legend_handles_labels()[0], period], fontsize=7)
+                ax.legend(fontsize=7)
     fig.suptitle("Step time against one setting at a time (seed 0, medians)", fontsize=10)
     fig.tight_layout()
     return fig
@@ -842,10 +853,12 @@ def section_step_scaling(ctx: Context, exp: Experiment) -> list[str]:
     if not rows:
         return []
     name = _save(step_scaling_figure(rows), ctx.out_dir, f"{exp.name}_step_scaling.png")
+    steps = max(int(r["steps"]) for r in rows)
     lines = ["", "Median `act` time (ms) with one setting changed from the recipe's default, "
-             "seed 0 (the first `act`, which builds the NLP, left out); `*`: the episode had "
-             "solver failures or rejected RTI steps (a rejected step is a converged solve):",
-             "", f"![step time scaling]({name})"]
+             f"seed 0, {steps} periods (the first `act`, which builds the NLP, left out); "
+             "`(k rej.)`: k of the RTI's steps were rejected by its safety net and replaced by a "
+             "converged solve (where that is most of them, the median is a converged step's); "
+             "`*`: the episode had solver failures:", "", f"![step time scaling]({name})"]
     for kind, what in STEP_SCALING.items():
         mine = [r for r in rows if r["measurement"] == kind]
         if not mine:
@@ -857,8 +870,8 @@ def section_step_scaling(ctx: Context, exp: Experiment) -> list[str]:
         def cell(r: dict[str, Any] | None) -> str:
             if r is None:
                 return "n/a"
-            flag = "*" if r["solver_failures"] or r["rti_rejected"] else ""
-            return f"{_fmt(r['act_median_ms'], 2)}{flag}"
+            text = _fmt(r["act_median_ms"], 2) + ("*" if r["solver_failures"] else "")
+            return text + (f" ({r['rti_rejected']} rej.)" if r["rti_rejected"] else "")
 
         lines += ["", f"Against the {what}:", ""]
         lines += markdown_table(
