@@ -11,7 +11,13 @@ from __future__ import annotations
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
-from benchmarks.controllers import CONTROLLERS, ENVS, check_env_scenario, check_name
+from benchmarks.controllers import (
+    CONTROLLERS,
+    ENVS,
+    N_INITIAL_POINTS,
+    check_env_scenario,
+    check_name,
+)
 from benchmarks.trial import Cell, TrialSpec
 
 MPC_BASES = ("nominal", "gp", "ssgp", "oracle")
@@ -336,7 +342,8 @@ def robustness(seeds: Sequence[int] = ROBUSTNESS_SEEDS,
                    for env, scenario, env_seeds in (("cartpole", "online", seeds),
                                                     ("quadrotor", "online", seeds),
                                                     ("dubins", "paper", dubins_seeds))
-                   for n in n_inits for s in env_seeds)
+                   for n in n_inits for s in env_seeds
+                   if n != N_INITIAL_POINTS)  # the default is the fixed-truth cell's trial
     kappa_cells = [Cell(randomize=0.1), Cell(noise=ROBUSTNESS_NOISE)]
     specs += tuple(TrialSpec("episode", "dubins", "paper", "ssgp-mpc", s, n_init=n,
                              cell=Cell(randomize=cell.randomize, noise=cell.noise, kappa=k))
@@ -352,7 +359,7 @@ def robustness(seeds: Sequence[int] = ROBUSTNESS_SEEDS,
         "3 s; Dubins `paper-wear`: losses 1.5x at 5 s, 2x at 10 s); the SSGP-MPC with 50, "
         "100 and 200 initial samples; the Dubins SSGP-MPC against the uncertainty radius "
         "kappa. Evaluation seeds 200-219 (Dubins 200-249), never used for tuning.",
-        specs, ("robustness", "summary"))
+        tuple(dict.fromkeys(specs)), ("robustness", "summary"))
 
 
 def quick() -> Experiment:

@@ -204,3 +204,11 @@ def test_a_nominal_recipe_takes_no_learner() -> None:
     env = make_env("cartpole", "gp")
     with pytest.raises(ValueError, match="learns nothing"):
         build_controller("nominal-mpc", env, "cartpole", 0, learner=online_ssgp(10))
+
+
+def test_no_preset_schedules_the_same_trial_twice() -> None:
+    """A trial listed twice would be counted twice in its experiment's summary."""
+    for name in PRESETS:
+        for exp in get_preset(name).experiments:
+            keys = [s.key for s in exp.specs]
+            assert len(keys) == len(set(keys)), (name, exp.name)
