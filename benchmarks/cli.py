@@ -140,6 +140,9 @@ def build_parser() -> _Parser:
     p.add_argument("--envs", help="comma-separated env short names (custom grid / filter)")
     p.add_argument("--scenarios", help="comma-separated scenario names (default: each env's "
                    "default scenario for a custom grid)")
+    p.add_argument("--cells", help="comma-separated trial cells of a preset to keep, by "
+                   "their names in trial keys (e.g. r0.1,r0.1_ddiff,noise0.005; 'default' "
+                   "for the default cell): a filter")
     p.add_argument("--seeds", type=parse_seeds, help="seeds, e.g. 0-4 or 0,2,5 (custom grid: "
                    "default 0; with a preset: a filter)")
     p.add_argument("--max-steps", type=_number(int, 1, "an integer >= 1"),
@@ -173,14 +176,24 @@ def build_parser() -> _Parser:
     return p
 
 
+DEFAULT_CELL = "default"
+"""The ``--cells`` name of the default cell (whose trial keys carry no cell part)."""
+
+
 def _filter(preset: Preset, controllers: list[str] | None, envs: list[str] | None,
             scenarios: list[str] | None, seeds: list[int] | None,
-            max_steps: int | None) -> Preset:
+            max_steps: int | None, cells: list[str] | None = None) -> Preset:
+    if cells is not None:
+        known = sorted({s.cell.key or DEFAULT_CELL for s in preset.specs})
+        for c in cells:
+            check_name("cell", c, known)
+
     def keep(s: TrialSpec) -> bool:
         return ((controllers is None or s.kind != "episode" or s.controller in controllers)
                 and (envs is None or s.env in envs)
                 and (scenarios is None or s.scenario in scenarios)
-                and (seeds is None or s.seed in seeds))
+                and (seeds is None or s.seed in seeds)
+                and (cells is None or (s.cell.key or DEFAULT_CELL) in cells))
 
     def change(s: TrialSpec) -> TrialSpec:
         return s if max_steps is None or s.kind not in ("episode", "ssgp-act-scaling") else (
@@ -203,6 +216,7 @@ def resolve(args: argparse.Namespace) -> tuple[Preset, Path]:
     controllers, envs, scenarios = (_names(args.controllers, "--controllers"),
                                     _names(args.envs, "--envs"),
                                     _names(args.scenarios, "--scenarios"))
+    cells = _names(getattr(args, "cells", None), "--cells")
     for c in controllers or ():
         check_name("controller", c, list(CONTROLLERS))
     for e in envs or ():
@@ -217,7 +231,7 @@ def resolve(args: argparse.Namespace) -> tuple[Preset, Path]:
                         (exp,))
     else:
         preset = _filter(get_preset(args.preset or "quick"), controllers, envs, scenarios,
-                         args.seeds, args.max_steps)
+                         args.seeds, args.max_steps, cells)
         if not preset.experiments:
             raise UnknownNameError("the filters leave no trial of preset "
                                    f"{args.preset or 'quick'!r}")

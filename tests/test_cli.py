@@ -153,3 +153,16 @@ def test_parse_seeds() -> None:
     for bad in ("", "a", "1-", "-1", "2-1", "1.5"):
         with pytest.raises(argparse.ArgumentTypeError):
             parse_seeds(bad)
+
+
+def test_cells_filter_keeps_only_the_named_cells_and_rejects_unknown_ones() -> None:
+    from benchmarks.cli import build_parser, resolve
+    from benchmarks.controllers import UnknownNameError
+
+    args = build_parser().parse_args(["--preset", "robustness", "--envs", "cartpole",
+                                      "--cells", "default,r0.1_ddiff"])
+    preset, _ = resolve(args)
+    assert {s.cell.key for s in preset.specs} == {"", "r0.1_ddiff"}
+    assert all(s.env == "cartpole" for s in preset.specs)
+    with pytest.raises(UnknownNameError, match="valid cells: default"):
+        resolve(build_parser().parse_args(["--preset", "robustness", "--cells", "r9"]))
