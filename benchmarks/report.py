@@ -1005,6 +1005,14 @@ def section_acceptance(ctx: Context, exp: Experiment) -> list[str]:
         r = by.get((env, scenario, c))
         return r if r and r["episodes"] else None
 
+    rejected: dict[tuple[str, str, str], list[int]] = defaultdict(lambda: [0, 0])
+    for t in ctx.of(exp):  # the RTI safety net's rejections, from the per-step statuses
+        if t.spec.kind == "episode" and t.ok and "diag_status" in t.arrays:
+            status = [str(v) for v in t.arrays["diag_status"]]
+            count = rejected[(t.spec.env, t.spec.scenario, t.spec.controller)]
+            count[0] += sum(v.startswith("RTI rejected") for v in status)
+            count[1] += sum(v == "RTI" or v.startswith("RTI rejected") for v in status)
+
     def speed(env: str, scenario: str, c: str, r: dict[str, Any]) -> str:
         text = (f"act median {_fmt(r['act_median_ms'], 2)} ms (solver "
                 f"{_fmt(r['solve_median_ms'], 2)} ms, the rest {_fmt(r['outside_median_ms'], 2)} "
@@ -1031,6 +1039,9 @@ def section_acceptance(ctx: Context, exp: Experiment) -> list[str]:
             verdict = "met" if ratio <= target else "not met"
             text += (f" = **{ratio:.2f}x** the {_label(reference)}'s (target {target}x: "
                      f"{verdict})")
+        n_rej, n_rti = rejected.get((env, scenario, c), (0, 0))
+        if rti and n_rti:
+            text += f"; {n_rej} of {n_rti} RTI steps rejected ({100 * n_rej / n_rti:.0f}%)"
         return text
 
     for c in order:
