@@ -378,6 +378,40 @@ def test_casadi_export_matches_predict(kind, sym, data, exact_gp):
         check()
 
 
+@pytest.mark.parametrize("kind", ["exact", "ssgp", "incremental", "linear"])
+def test_batch_export_matches_predict_at_every_column(kind, data, exact_gp):
+    """``casadi_mean_batch`` / ``casadi_variance_batch`` (matrix operations over points, the
+    SSGPs' own; the exact GP's the per-column default) against ``predict``, and the mean-only
+    parameter vector (``variance=False``): the same mean, the variance blocks left zero."""
+    Z, Y, Zt, _ = data
+    model = {
+        "exact": lambda: ExactGP(optimize=False, hyperparameters=exact_gp.hyperparameters_
+                                 ).fit(Z[:40], Y[:40]),
+        "ssgp": lambda: SSGP(20, hyperparameters=exact_gp).fit(Z, Y),
+        "incremental": lambda: IncrementalSSGP(20, forgetting_factor=0.97,
+                                               hyperparameters=exact_gp).fit(Z[:60], Y[:60]),
+        "linear": lambda: IncrementalSSGP(12, forgetting_factor=0.98, linear_features=True,
+                                          n_restarts=0, random_state=2).fit(Z[:60], Y[:60]),
+    }[kind]()
+    if kind in ("incremental", "linear"):
+        model.update(Z[60:70], Y[60:70])
+    Zq = Zt[:7]
+    P = model.casadi_param_size()
+    Zs, theta = ca.MX.sym("Z", 3, Zq.shape[0]), ca.MX.sym("theta", P)
+    fn = ca.Function("batch", [Zs, theta], [model.casadi_mean_batch(Zs, theta),
+                                            model.casadi_variance_batch(Zs, theta)])
+    mean, std = model.predict(Zq, return_std=True)
+    full, lean = model.casadi_param_values(), model.casadi_param_values(variance=False)
+    for values in (full, lean):
+        m, _ = fn(Zq.T, values)
+        np.testing.assert_allclose(np.asarray(m).T, mean, rtol=1e-10, atol=1e-10)
+    np.testing.assert_allclose(np.asarray(fn(Zq.T, full)[1]).T, std**2, rtol=1e-8, atol=1e-12)
+    assert lean.shape == full.shape and np.count_nonzero(lean) < np.count_nonzero(full)
+    np.testing.assert_array_equal(lean[lean != 0], full[lean != 0])
+    with pytest.raises(ValueError, match="rows"):
+        model.casadi_mean_batch(ca.MX.sym("Z", 2, 4), theta)
+
+
 # ---------------------------------------------------------------------------- bad inputs
 def _learners(exact_gp):
     return [

@@ -472,6 +472,52 @@ def test_rti_tracks_the_converged_mpc_and_its_safety_net_falls_back_to_it():
         PseudospectralMPC.from_env(env, scheme="sometimes")
 
 
+@pytest.mark.parametrize("kappa", [0.0, 1.0], ids=["mean", "with-variance"])
+def test_the_rti_steps_compiled_expansion_is_the_numeric_one(kappa):
+    """The SSGP RTI linearizes inside its one compiled step (the learner's exported
+    parameters in, matrix operations over the nodes): its node parameters, the plan it gives
+    and its recorded expansion error equal the numeric path's (``node_param_values`` at the
+    shifted plan, the same QP step, ``plan_error`` at the new plan), with the uncertainty
+    radius's variances too."""
+    env = gym.make(DUBINS)
+    agent = PseudospectralMPC.from_env(env, online_ssgp(10), scheme="rti",
+                                       learned_dynamics="linearized", uncertainty_radius=kappa)
+    agent.pretrain(collect_initial_data(env, 60, seed=0))
+    obs, _ = env.reset(seed=0)
+    accepted = 0
+    for k in range(40):
+        if k >= 2:  # compare at the steps the RTI accepts
+            agent._flush_learning()
+            planner, term = agent.planner, agent.planner.planning.term
+            previous, p = agent.plan, planner.planning.param_values()
+            ws = np.asarray(planner._shift(previous.solution.nlp_x, obs)).ravel()
+            shifted = planner.ocp.solution_from_primal(ws, p, status="shifted", success=True)
+            q = term.node_param_values(shifted.x_nodes, shifted.u)
+            theta = term.expansion_param_values()
+            X, U = ca.MX.sym("X", *shifted.x_nodes.T.shape), ca.MX.sym("U", *shifted.u.T.shape)
+            T = ca.MX.sym("theta", theta.size)
+            expansion = ca.Function("q", [X, U, T], [term.node_param_expr(X, U, T)])
+            np.testing.assert_allclose(
+                np.asarray(expansion(shifted.x_nodes.T, shifted.u.T, theta)).T, q,
+                rtol=1e-10, atol=1e-12)
+            plan, record = planner.plan(obs, previous, agent._step)
+            if record["status"] == "RTI":
+                accepted += 1
+                w_ref = np.asarray(planner._qp_step(ws, np.concatenate([p, q.ravel()]))[0])
+                np.testing.assert_allclose(plan.solution.nlp_x, w_ref.ravel(), rtol=1e-9,
+                                           atol=1e-9)
+                assert record["linearization_error"] == pytest.approx(
+                    term.plan_error(plan.solution), rel=1e-9)
+                assert record["linearization_error"] > 0
+                if accepted == 3:
+                    break
+        u = agent.act(obs)
+        nxt, *_ = env.step(u)
+        agent.observe(obs, u, nxt)
+        obs = nxt
+    assert accepted == 3
+
+
 def test_a_qp_plugin_that_raises_is_a_rejected_step_not_a_crash():
     env = gym.make(CART, scenario="gp")
     obs, _ = env.reset(seed=0)

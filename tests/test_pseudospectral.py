@@ -11,6 +11,7 @@ import pytest
 from scipy.optimize import brentq
 
 from gp_agents.pseudospectral import (
+    BufferedFunction,
     GaussPseudospectralSolver,
     InitialGuess,
     OptimalControlProblem,
@@ -567,6 +568,41 @@ def test_mixed_mesh_first_period_held_then_lg() -> None:
     again = solver.solve(initial_guess=sol)
     assert again.success and again.iterations <= 2
     np.testing.assert_allclose(again.x, sol.x, atol=1e-8)
+
+
+def test_node_indices_pick_the_solutions_node_states_and_controls() -> None:
+    """``node_indices`` (for compiled steps that evaluate node-wise functions of w) on a mixed
+    mesh with two-dimensional states: ``w[ix]``, ``w[iu]`` are ``x_nodes`` and ``u``."""
+    solver = GaussPseudospectralSolver(bryson_denham_problem(1 / 9), n_nodes=[3, 5, 4],
+                                       mesh=[0.0, 0.1, 0.5, 1.0], hold=[True, False, False])
+    sol = solver.solve()
+    ix, iu = solver.node_indices()
+    assert ix.shape == (12, 2) and iu.shape == (12, 1)
+    np.testing.assert_array_equal(sol.nlp_x[ix], sol.x_nodes)
+    np.testing.assert_array_equal(sol.nlp_x[iu], sol.u)
+    assert len(set(iu[:3, 0])) == 1 and len(set(iu[3:, 0])) == 9  # the held period: one column
+
+
+def test_buffered_function_equals_the_plain_call() -> None:
+    """A Function called on numpy memory (its buffer interface) gives what the DM call gives,
+    matrices read column-major; wrong inputs and sparse outputs are refused."""
+    a, b = ca.MX.sym("a", 3, 2), ca.MX.sym("b", 4)
+    fn = ca.Function("f", [a, b], [ca.mtimes(a.T, b[:3]) * b[3], ca.sin(a)])
+    buffered = BufferedFunction(fn)
+    rng = np.random.default_rng(0)
+    A, B = rng.standard_normal((3, 2)), rng.standard_normal(4)
+    out = buffered(A, B)
+    ref = fn(A, B)
+    np.testing.assert_array_equal(out[0], np.asarray(ref[0]).ravel(order="F"))
+    np.testing.assert_array_equal(out[1], np.asarray(ref[1]).ravel(order="F"))
+    out[0][:] = np.nan  # results are copies: the next call is unaffected
+    np.testing.assert_array_equal(buffered(A, B)[1], np.sin(A).ravel(order="F"))
+    with pytest.raises(ValueError, match="needs 4 numbers"):
+        buffered(A, B[:3])
+    with pytest.raises(ValueError, match="takes 2 inputs"):
+        buffered(A)
+    with pytest.raises(ValueError, match="sparse"):
+        BufferedFunction(ca.Function("g", [b], [ca.diag(b)]))
 
 
 def test_path_constraints_hold_at_held_interval_ends() -> None:

@@ -44,8 +44,9 @@ class BaseGPLearner(ABC):
         """Standardized-space mean gradient (N, d_out, d_in)."""
 
     @abstractmethod
-    def _casadi_blocks(self) -> list[tuple[str, np.ndarray]]:
-        """Learner-specific ``(name, value)`` blocks of the CasADi parameter vector."""
+    def _casadi_blocks(self, variance: bool = True) -> list[tuple[str, np.ndarray]]:
+        """Learner-specific ``(name, value)`` blocks of the CasADi parameter vector; without
+        ``variance``, those only the variance reads may be left out (not computed)."""
 
     def _casadi_block_shapes(self) -> list[tuple[str, tuple[int, ...]]]:
         """Shapes of :meth:`_casadi_blocks` (override when the values are costly)."""
@@ -56,6 +57,15 @@ class BaseGPLearner(ABC):
         self, zs: ca.SX | ca.MX, theta: ca.SX | ca.MX, j: int, variance: bool
     ) -> tuple[ca.SX | ca.MX, ca.SX | ca.MX | None]:
         """Standardized mean and (optionally) variance of output ``j`` as CasADi scalars."""
+
+    def _sym_mean_var_batch(
+        self, Zs: ca.MX, theta: ca.MX, j: int, variance: bool
+    ) -> tuple[ca.MX, ca.MX | None]:
+        """:meth:`_sym_mean_var` at the columns of ``Zs`` (d_in, M): (1, M) rows. This default
+        builds one expression per column; learners override it with matrix operations."""
+        pairs = [self._sym_mean_var(Zs[:, k], theta, j, variance) for k in range(Zs.shape[1])]
+        mean = ca.horzcat(*[m for m, _ in pairs])
+        return mean, (ca.horzcat(*[v for _, v in pairs]) if variance else None)
 
     # ------------------------------------------------------------------ helpers
     def _check_fitted(self) -> None:
@@ -124,10 +134,19 @@ class BaseGPLearner(ABC):
         self._check_fitted()
         return self._layout().size
 
-    def casadi_param_values(self) -> np.ndarray:
-        """(P,) current numeric value of the CasADi parameter vector."""
+    def casadi_param_values(self, variance: bool = True) -> np.ndarray:
+        """(P,) current numeric value of the CasADi parameter vector.
+
+        Args:
+            variance: False: the blocks only :meth:`casadi_variance` reads (the inverse
+                Cholesky factors, the costliest part to refresh after an update: a triangular
+                inverse per output) are left zero, so the vector serves :meth:`casadi_mean`
+                only. Same size either way.
+        """
         self._check_fitted()
-        return self._layout().pack(dict(self._standardizer_blocks() + self._casadi_blocks()))
+        return self._layout().pack(
+            dict(self._standardizer_blocks() + self._casadi_blocks(variance)),
+            fill_missing=not variance)
 
     def _sym_outputs(self, z: ca.SX | ca.MX, theta: ca.SX | ca.MX, variance: bool) -> ca.SX | ca.MX:
         self._check_fitted()
@@ -138,6 +157,33 @@ class BaseGPLearner(ABC):
         rows = []
         for j in range(self.n_outputs_):
             m, v = self._sym_mean_var(zs, theta, j, variance)
+            rows.append(y_std[j] ** 2 * v if variance else y_mean[j] + y_std[j] * m)
+        return ca.vertcat(*rows)
+
+    def casadi_mean_batch(self, Z: ca.MX, theta: ca.MX) -> ca.MX:
+        """Predictive mean at every column of ``Z`` (d_in, M) as one MX expression (d_out, M),
+        column k equal to ``casadi_mean(Z[:, k], theta)``: for functions evaluated at many
+        points per call (a compiled MPC step), where matrix operations are much cheaper than
+        one scalar expression graph per point."""
+        return self._sym_outputs_batch(Z, theta, variance=False)
+
+    def casadi_variance_batch(self, Z: ca.MX, theta: ca.MX) -> ca.MX:
+        """:meth:`casadi_variance` at every column of ``Z`` (d_in, M): (d_out, M)."""
+        return self._sym_outputs_batch(Z, theta, variance=True)
+
+    def _sym_outputs_batch(self, Z: ca.MX, theta: ca.MX, variance: bool) -> ca.MX:
+        self._check_fitted()
+        layout = self._layout()
+        d, M = self.n_features_in_, Z.shape[1]
+        if Z.shape[0] != d:
+            raise ValueError(f"Z must have {d} rows (one column per point), got {Z.shape}")
+        Zs = (Z - ca.repmat(layout.unpack(theta, "z_mean"), 1, M)) / ca.repmat(
+            layout.unpack(theta, "z_std"), 1, M)
+        y_mean = layout.unpack(theta, "y_mean")
+        y_std = layout.unpack(theta, "y_std")
+        rows = []
+        for j in range(self.n_outputs_):
+            m, v = self._sym_mean_var_batch(Zs, theta, j, variance)
             rows.append(y_std[j] ** 2 * v if variance else y_mean[j] + y_std[j] * m)
         return ca.vertcat(*rows)
 

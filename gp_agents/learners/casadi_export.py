@@ -47,13 +47,20 @@ class ParamLayout:
             offset += int(np.prod(shape))
         self.size = offset
 
-    def pack(self, values: Mapping[str, np.ndarray]) -> np.ndarray:
-        """Flatten ``values`` (one array per block, exact shapes) into a (P,) vector."""
-        out = np.empty(self.size)
+    def pack(self, values: Mapping[str, np.ndarray], fill_missing: bool = False) -> np.ndarray:
+        """Flatten ``values`` (one array per block, exact shapes) into a (P,) vector.
+
+        Args:
+            values: block name -> array.
+            fill_missing: leave blocks absent from ``values`` zero instead of raising.
+        """
+        out = np.zeros(self.size)
         missing = set(self._blocks) - set(values)
-        if missing:
+        if missing and not fill_missing:
             raise ValueError(f"missing blocks {sorted(missing)}")
         for name, (off, shape) in self._blocks.items():
+            if name in missing:
+                continue
             a = np.asarray(values[name], dtype=float)
             if a.shape != shape:
                 raise ValueError(f"block {name!r}: expected shape {shape}, got {a.shape}")

@@ -229,12 +229,12 @@ class ExactGP(BaseGPLearner):
             )
         return self._l_inv_cache
 
-    def _casadi_blocks(self) -> list[tuple[str, np.ndarray]]:
+    def _casadi_blocks(self, variance: bool = True) -> list[tuple[str, np.ndarray]]:
         """Training inputs, and per output alpha, 1/ell, sigma_s, effective sigma_n and the
-        inverse Cholesky factor ``L^{-1}`` (N x N, for the variance)."""
+        inverse Cholesky factor ``L^{-1}`` (N x N, for the variance; only with ``variance``)."""
         hyp = self.hyperparameters_
         assert hyp is not None
-        Linv = self._l_inv()
+        Linv = self._l_inv() if variance else None
         blocks: list[tuple[str, np.ndarray]] = [("Z_train", self.X_train_)]
         for j in range(self.n_outputs_):
             blocks += [
@@ -242,7 +242,7 @@ class ExactGP(BaseGPLearner):
                 (f"inv_ls_{j}", 1.0 / hyp.length_scales[j]),
                 (f"sf_{j}", hyp.signal_std[j : j + 1]),
                 (f"sn_{j}", np.sqrt(self.noise_var_[j : j + 1])),
-                (f"Linv_{j}", Linv[j]),
+                *([(f"Linv_{j}", Linv[j])] if Linv is not None else []),
             ]
         return blocks
 

@@ -373,13 +373,13 @@ class SSGP(BaseGPLearner):
             ]
         return shapes
 
-    def _casadi_blocks(self) -> list[tuple[str, np.ndarray]]:
+    def _casadi_blocks(self, variance: bool = True) -> list[tuple[str, np.ndarray]]:
         """Per output: frequencies, sigma_s, sigma_n, (sigma_l,) weights, and ``R^{-1}`` (for
-        the variance ``sigma_n^2 (1 + |R^{-T} phi|^2)``)."""
+        the variance ``sigma_n^2 (1 + |R^{-T} phi|^2)``; only with ``variance``)."""
         hyp = self.hyperparameters_
         assert hyp is not None
         W = self.weights_
-        Rinv = self._rinv()
+        Rinv = self._rinv() if variance else None
         blocks: list[tuple[str, np.ndarray]] = []
         for j in range(self.n_outputs_):
             blocks += [
@@ -389,9 +389,25 @@ class SSGP(BaseGPLearner):
                 *([(f"sl_{j}", self.linear_std_[j : j + 1])]
                   if self.linear_std_ is not None else []),
                 (f"w_{j}", W[j]),
-                (f"Rinv_{j}", Rinv[j]),
+                *([(f"Rinv_{j}", Rinv[j])] if Rinv is not None else []),
             ]
         return blocks
+
+    def _sym_mean_var_batch(
+        self, Zs: ca.MX, theta: ca.MX, j: int, variance: bool
+    ) -> tuple[ca.MX, ca.MX | None]:
+        lay = self._layout()
+        omega = lay.unpack(theta, f"omega_{j}")
+        arg = ca.mtimes(omega.T, Zs)  # (r, M)
+        phi = (lay.unpack(theta, f"sf_{j}") / np.sqrt(omega.shape[1])) * ca.vertcat(
+            ca.cos(arg), ca.sin(arg))
+        if self.linear_std_ is not None:
+            phi = ca.vertcat(phi, lay.unpack(theta, f"sl_{j}") * Zs)
+        mean = ca.mtimes(lay.unpack(theta, f"w_{j}").T, phi)
+        if not variance:
+            return mean, None
+        v = ca.mtimes(lay.unpack(theta, f"Rinv_{j}").T, phi)
+        return mean, lay.unpack(theta, f"sn_{j}") ** 2 * (1.0 + ca.sum1(v**2))
 
     def _sym_mean_var(
         self, zs: ca.SX | ca.MX, theta: ca.SX | ca.MX, j: int, variance: bool

@@ -56,7 +56,8 @@ class GPInNLP(LearnedTerm):
 
     def param_values(self) -> np.ndarray:
         try:
-            return np.asarray(self.learner.casadi_param_values(), float).ravel()
+            values = self.learner.casadi_param_values(variance=self.variance)
+            return np.asarray(values, float).ravel()
         except (ValueError, RuntimeError) as err:
             raise not_fitted(err) from err
 

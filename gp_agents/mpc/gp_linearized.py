@@ -97,6 +97,81 @@ class LinearizedGP(LearnedTerm):
         self._expansion = dict(mean=mean, jacobian=jac, points=points)
         return np.hstack(blocks)
 
+    # ------------------------------------------------------------------ compiled expansion
+    def expansion_param_values(self) -> np.ndarray:
+        """The learner's parameters ``theta`` (P,) that :meth:`node_param_expr` and
+        :meth:`plan_error_expr` read (its CasADi export, :meth:`casadi_param_values`).
+
+        Raises:
+            RuntimeError: the learner is not fitted.
+        """
+        try:
+            values = self.learner.casadi_param_values(variance=self.variance)
+            return np.asarray(values, float).ravel()
+        except (ValueError, RuntimeError) as err:
+            raise not_fitted(err) from err
+
+    def _mean_function(self, M: int, n_theta: int) -> ca.Function:
+        """``(P, theta) -> mean``: the learned mean (d_out, M) at M node points ``P = [X; U]``
+        (n + m, M) as matrix operations (the learner's ``casadi_mean_batch``)."""
+        res = self.residual
+        n, m = res.model.n_states, res.model.n_controls
+        x, u = ca.SX.sym("x", n), ca.SX.sym("u", m)
+        inputs = ca.Function("learner_inputs", [x, u], [res.features(x, u)]).map(M)
+        P, theta = ca.MX.sym("P", n + m, M), ca.MX.sym("theta", n_theta)
+        mean = self.learner.casadi_mean_batch(inputs(P[:n, :], P[n:, :]), theta)
+        return ca.Function("learned_mean", [P, theta], [mean])
+
+    def node_param_expr(self, X: ca.MX, U: ca.MX, theta: ca.MX) -> ca.MX:
+        """:meth:`node_param_values` as a CasADi expression, for a step compiled as one
+        function (the real-time iteration): the expansion about node states X (n, M) and
+        controls U (m, M) with the learner's parameters theta (P, 1); (n_node_params, M), node
+        k's column equal to row k of ``node_param_values(X.T, U.T)``.
+
+        The mean at all nodes at once by matrix operations (the learner's
+        ``casadi_mean_batch``); its Jacobian in the learner's inputs is block diagonal (node
+        k's mean depends on node k's inputs only) and is chained with each node's input-map
+        Jacobian. (Measured on the quadrotor: 0.4 ms per step, against 0.85 ms for a mapped
+        per-node MX function, 3.6 ms for forward derivatives seeded at every node, and 3.3 ms
+        for the learner's scalar SX graph.)"""
+        res = self.residual
+        n, m = res.model.n_states, res.model.n_controls
+        M, d_in, d_out = X.shape[1], res.n_inputs, res.n_outputs
+        x, u = ca.SX.sym("x", n), ca.SX.sym("u", m)
+        z = res.features(x, u)
+        Z, dZ = ca.Function("learner_inputs", [x, u],
+                            [z, ca.jacobian(z, ca.vertcat(x, u))]).map(M)(X, U)
+        Zs, ts = ca.MX.sym("Z", d_in, M), ca.MX.sym("theta", theta.shape)
+        mean_s = self.learner.casadi_mean_batch(Zs, ts)
+        G = ca.jacobian(ca.vec(mean_s), ca.vec(Zs))
+        mean, G = ca.Function("learned_mean_jacobian", [Zs, ts], [mean_s, G])(Z, theta)
+        cols = list(res.jacobian_columns)
+        points = ca.vertcat(X, U)
+        if self.variance:
+            var = self.learner.casadi_variance_batch(Z, theta)
+            unc = res.uncertain_indices
+        columns = []
+        for k in range(M):
+            J = ca.mtimes(G[k * d_out:(k + 1) * d_out, k * d_in:(k + 1) * d_in],
+                          dZ[:, k * (n + m):(k + 1) * (n + m)])
+            col = [mean[:, k] - ca.mtimes(J, points[:, k]), ca.vec(J[:, cols])]
+            if self.variance:
+                col += [var[unc.index(0), k], var[unc.index(1), k]]
+            columns.append(ca.vertcat(*col))
+        return ca.horzcat(*columns)
+
+    def plan_error_expr(self, X: ca.MX, U: ca.MX, Q: ca.MX, theta: ca.MX) -> ca.MX:
+        """:meth:`plan_error` as a CasADi expression: the error of the expansion ``Q``
+        (n_node_params, M) at node states X (n, M) and controls U (m, M), as a fraction of its
+        tolerance (scalar)."""
+        mean = self._mean_function(X.shape[1], theta.numel())(ca.vertcat(X, U), theta)
+        predicted = ca.horzcat(*[self.rates(X[:, k], U[:, k], None, Q[:, k])
+                                 for k in range(X.shape[1])])
+        err = ca.fabs(mean - predicted)
+        ratios = [ca.mmax(err[j, :]) / (self.tol * ca.mmax(ca.fabs(mean[j, :])) + 1e-3)
+                  for j in range(self.residual.n_outputs)]
+        return ca.mmax(ca.vertcat(*ratios))
+
     def solves(self, cold: bool) -> int:
         return max(self.max_linearizations, COLD_START_LINEARIZATIONS if cold else 1)
 

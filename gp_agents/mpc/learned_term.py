@@ -19,6 +19,7 @@ from __future__ import annotations
 
 from typing import Any
 
+import casadi as ca
 import numpy as np
 
 from gp_agents.pseudospectral import OCPSolution
@@ -95,6 +96,25 @@ class LearnedTerm:
     def solves(self, cold: bool) -> int:
         """Most solves per replan (re-linearizations); ``cold``: no previous plan."""
         return 1
+
+    # ------------------------------------------------------------------ compiled steps
+    def expansion_param_values(self) -> np.ndarray:
+        """The learner's numbers (P,) that :meth:`node_param_expr` reads (none by default)."""
+        return np.zeros(0)
+
+    def node_param_expr(self, X: Any, U: Any, theta: Any) -> Any:
+        """:meth:`node_param_values` as a CasADi expression of node states X (n, M), controls
+        U (m, M) and :meth:`expansion_param_values` theta (P, 1): (n_node_params, M). A term
+        with node parameters implements it to take part in a compiled step (the real-time
+        iteration's)."""
+        raise NotImplementedError(f"the learned term {self.name!r} has no symbolic node "
+                                  "parameters")
+
+    def plan_error_expr(self, X: Any, U: Any, Q: Any, theta: Any) -> Any:
+        """:meth:`plan_error` as a CasADi expression (scalar) of a plan's node states X
+        (n, M), controls U (m, M), the node parameters Q (n_node_params, M) it was planned
+        with and theta; 0 for an exact term."""
+        return ca.DM(0.0)
 
     def plan_error(self, plan: OCPSolution) -> float:
         """How far ``plan`` is from the term's own model of it, as a fraction of the term's

@@ -20,7 +20,10 @@ function; Python passes the state and the learned term's numbers in, and gets th
 
 A learned term enters as its per-node linearization at the shifted plan
 (:class:`~gp_agents.mpc.gp_linearized.LinearizedGP`: values and Jacobians as NLP parameters), so
-the QP has the nominal structure and the learner is evaluated once per node per period.
+the QP has the nominal structure and the learner is evaluated once per node per period. The
+expansion and its error at the new plan are part of the same compiled function, computed from
+the learner's exported parameters (its ``casadi_param_values``), so Python passes the state,
+the model's parameters and the learner's numbers in.
 
 **Safety net.** A step whose QP fails (a non-finite result, or the QP plugin raised) or whose
 plan violates the NLP's constraints by more than ``max_violation`` (defects in state units,
@@ -44,7 +47,7 @@ from gp_agents.mpc.learned_term import LearnedTerm
 from gp_agents.mpc.ocp import Constraints, Mesh
 from gp_agents.mpc.planner import Plan, Planner
 from gp_agents.mpc.planning_model import PlanningModel
-from gp_agents.pseudospectral import OCPSolution
+from gp_agents.pseudospectral import BufferedFunction, OCPSolution
 
 __all__ = ["QP_SOLVER_OPTIONS", "RTIPlanner"]
 
@@ -88,7 +91,9 @@ class RTIPlanner(Planner):
         options = dict(QP_SOLVER_OPTIONS.get(qp_solver, {}) if qp_options is None
                        else qp_options)
         options.setdefault("error_on_fail", False)
-        self._shift, self._qp_step, self._step = self._build(options)
+        self._shift, self._qp_step, step = self._build(options)
+        self._step = BufferedFunction(step)
+        self._learned_steps: dict[int, BufferedFunction] = {}
         self.n_rti_steps = self.n_rti_rejected = 0
 
     def _build(self, qp_options: dict[str, Any]) -> tuple[ca.Function, ca.Function, ca.Function]:
@@ -135,6 +140,36 @@ class RTIPlanner(Planner):
                            ["w_prev", "x0", "p"], names)
         return shift, qp_step, step
 
+    def _learned_step(self, n_theta: int) -> BufferedFunction:
+        """The warm step with a node-parameter term (built once per learner size ``n_theta``):
+        ``(w_prev, x0, p, theta) -> (w, u, violation, lam_g, lam_x, linearization_error)``.
+        Inside: the shift, the term's expansion at the shifted plan's nodes from the
+        learner's parameters theta, the QP step, and the expansion's error at the new plan."""
+        step = self._learned_steps.get(n_theta)
+        if step is not None:
+            return step
+        ocp, term = self.ocp, self.planning.term
+        n, m = self.planning.model.n_states, self.planning.model.n_controls
+        ix, iu = ocp.node_indices()
+        M = ix.shape[0]
+        w_prev, x0 = ca.MX.sym("w_prev", ocp.n_variables), ca.MX.sym("x0", n)
+        p, theta = ca.MX.sym("p", ocp.nlp["p"].numel() - M * term.n_node_params()), \
+            ca.MX.sym("theta", n_theta)
+
+        def nodes(w: ca.MX) -> tuple[ca.MX, ca.MX]:
+            return (ca.reshape(w[ix.ravel().tolist()], n, M),
+                    ca.reshape(w[iu.ravel().tolist()], m, M))
+
+        ws = self._shift(w_prev, x0)
+        Q = term.node_param_expr(*nodes(ws), theta)
+        out = self._qp_step(ws, ca.vertcat(p, ca.vec(Q)))
+        error = term.plan_error_expr(*nodes(out[0]), Q, theta)
+        step = ca.Function("rti_learned_step", [w_prev, x0, p, theta], [*out, error],
+                           ["w_prev", "x0", "p", "theta"],
+                           ["w", "u", "violation", "lam_g", "lam_x", "linearization_error"])
+        self._learned_steps[n_theta] = BufferedFunction(step)
+        return self._learned_steps[n_theta]
+
     def plan(self, x: np.ndarray, previous: Plan | None, step: int) -> tuple[Plan, dict[str, Any]]:
         """One SQP step from ``previous`` shifted to period ``step``, or a converged solve
         (cold start, a previous plan that is not this OCP's, or a rejected step)."""
@@ -148,15 +183,15 @@ class RTIPlanner(Planner):
         term: LearnedTerm = self.planning.term
         p = self.planning.param_values()
         w_prev = previous.solution.nlp_x
+        error = 0.0
         try:
             if term.n_node_params():
-                ws = np.asarray(self._shift(w_prev, x)).ravel()
-                sol = self.ocp.solution_from_primal(ws, p, status="shifted", success=True)
-                q = term.node_param_values(sol.x_nodes, sol.u)
-                out = self._qp_step(ws, np.concatenate([p, q.ravel()]))
+                theta = term.expansion_param_values()
+                out = self._learned_step(theta.size)(w_prev, x, p, theta)
+                error = float(out[5][0])
             else:
                 out = self._step(w_prev, x, p)
-            w_new, _, violation, lam_g, lam_x = (np.asarray(v).ravel() for v in out)
+            w_new, _, violation, lam_g, lam_x = out[:5]
             violation = float(violation[0])
         except RuntimeError:  # the QP plugin raised (e.g. osqp's "Problem in osqp_update_P_A")
             w_new, violation = np.full(self.ocp.n_variables, np.nan), np.inf
@@ -171,7 +206,6 @@ class RTIPlanner(Planner):
             return plan, record
         sol = self.ocp.solution_from_primal(w_new, p, status="RTI", success=True, iterations=1,
                                             solve_time=elapsed, lam_x=lam_x, lam_g=lam_g)
-        error = term.plan_error(sol) if term.n_node_params() else 0.0
         return Plan(sol, step, self.planning.model.dt, self.ocp.hold), dict(
             success=True, status="RTI", iterations=1, solve_time=elapsed, solves=1,
             fallback=False, linearization_error=float(error))

@@ -10,8 +10,11 @@ al. 2006 and Garg et al. 2010, reference errata note 5). Independent of any env 
   NLP built once, re-solved with new parameters and warm starts).
 * :mod:`~gp_agents.pseudospectral.solution`: :class:`OCPSolution`, :class:`InitialGuess`,
   :func:`shift_solution`.
+* :mod:`~gp_agents.pseudospectral.buffered`: :class:`BufferedFunction` (a CasADi Function
+  called on numpy memory, for compiled steps called every control period).
 """
 
+from gp_agents.pseudospectral.buffered import BufferedFunction
 from gp_agents.pseudospectral.nodes import (
     barycentric_weights,
     differentiation_matrix,
@@ -31,6 +34,7 @@ from gp_agents.pseudospectral.transcription import (
 
 __all__ = [
     "IPOPT_WARM_START_OPTIONS",
+    "BufferedFunction",
     "GaussPseudospectralSolver",
     "InitialGuess",
     "OCPSolution",

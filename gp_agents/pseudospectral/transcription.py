@@ -655,6 +655,17 @@ class GaussPseudospectralSolver:
         return (solution.structure is not None and solution.structure[1:] == self._structure[1:]
                 and solution.nlp_x is not None and solution.nlp_x.size == self.n_variables)
 
+    def node_indices(self) -> tuple[np.ndarray, np.ndarray]:
+        """Where the collocation nodes' states and controls lie in w: integer arrays (M, n)
+        and (M, m), so that ``w[ix]`` and ``w[iu]`` are a solution's ``x_nodes`` and ``u``
+        (for schemes that evaluate node-wise functions of w inside a compiled step)."""
+        n, m, lay = self.n_states, self.n_controls, self._layout
+        rows = np.asarray(lay.node_cols, dtype=np.int64)
+        ix = rows[:, None] * n + np.arange(n)[None, :]
+        iu = (n * self.n_points + m * np.asarray(lay.control_index, dtype=np.int64)[:, None]
+              + np.arange(m)[None, :])
+        return ix, iu
+
     def decision_of_node(self, k: int) -> int:
         """The control decision of collocation node ``k``."""
         return int(self._layout.control_index[k])

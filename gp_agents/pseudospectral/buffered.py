@@ -1,0 +1,68 @@
+"""Calling a CasADi Function with numpy arrays without converting them to ``DM``.
+
+``f(a)`` with a numpy array converts it element by element into a ``casadi.DM`` and the results
+back (measured here: about 0.1 us per element each way, so 7 ms for the 66k parameters of a
+quadrotor SSGP with r = 50, against 0.02 ms for the same call through the buffer interface).
+CasADi's buffer interface (``Function.buffer()``, casadi issue #1511) evaluates on memory the
+caller owns instead: :class:`BufferedFunction` wraps it for dense vector inputs and outputs.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+__all__ = ["BufferedFunction"]
+
+
+class BufferedFunction:
+    """A CasADi Function evaluated on numpy memory (``Function.buffer()``).
+
+    Args:
+        fn: a Function whose inputs and outputs are all dense (any shape: they are read and
+            written column-major, as flat vectors of their ``nnz``).
+
+    Calling it with one array-like per input (a matrix input may be given as its (rows, cols)
+    array: it is read column-major, as CasADi stores it) returns a tuple of fresh (nnz,) float
+    arrays, one per output, column-major (copies: the buffers are reused by the next call).
+
+    Raises:
+        ValueError: a sparse input or output (at construction); at a call, the wrong number of
+            inputs or an input of the wrong size.
+    """
+
+    def __init__(self, fn: ca.Function) -> None:
+        for kind, n, sparsity in (("input", fn.n_in(), fn.sparsity_in),
+                                  ("output", fn.n_out(), fn.sparsity_out)):
+            for i in range(n):
+                if not sparsity(i).is_dense():
+                    raise ValueError(f"{fn.name()}: {kind} {i} is sparse; BufferedFunction "
+                                     "takes dense inputs and outputs only")
+        self.fn = fn
+        self._sizes = [fn.nnz_in(i) for i in range(fn.n_in())]
+        self._out = [np.zeros(fn.nnz_out(i)) for i in range(fn.n_out())]
+        self._buffer, self._eval = fn.buffer()
+        for i, out in enumerate(self._out):
+            self._buffer.set_res(i, memoryview(out))
+
+    def __call__(self, *args: Any) -> tuple[np.ndarray, ...]:
+        """Evaluate at ``args`` (one array-like of ``nnz_in(i)`` numbers per input)."""
+        if len(args) != len(self._sizes):
+            raise ValueError(f"{self.fn.name()} takes {len(self._sizes)} inputs, got "
+                             f"{len(args)}")
+        held = []  # the arrays whose memory the buffer reads, alive until the call returns
+        for i, (a, size) in enumerate(zip(args, self._sizes, strict=True)):
+            arr = np.ascontiguousarray(np.asarray(a, dtype=float).reshape(-1, order="F"))
+            if arr.size != size:
+                raise ValueError(f"{self.fn.name()}: input {i} ({self.fn.name_in(i)}) needs "
+                                 f"{size} numbers, got {arr.size}")
+            held.append(arr)
+            self._buffer.set_arg(i, memoryview(arr))
+        self._eval()
+        return tuple(out.copy() for out in self._out)
+
+    def __getstate__(self) -> dict[str, Any]:
+        raise TypeError("BufferedFunction is not picklable (it holds CasADi evaluation "
+                        "memory): rebuild it from its Function")
