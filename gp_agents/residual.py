@@ -30,6 +30,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+from gp_agents.pseudospectral.buffered import BufferedFunction
 from gp_envs.model import ControlModel, rk4
 
 
@@ -71,8 +72,8 @@ class ResidualModel:
         self._features_fn = ca.Function("phi", [x, u], [self.features(x, u)])
         z = self.features(x, u)
         dz = ca.jacobian(z, ca.vertcat(x, u))
-        self._features_jac_fn = ca.Function("phi_jac", [x, u], [z, dz])
-        self._mapped: dict[tuple[str, int], ca.Function] = {}
+        self._features_jac_fn = ca.Function("phi_jac", [x, u], [z, ca.densify(dz)])
+        self._mapped: dict[tuple[str, int], BufferedFunction] = {}
         self.jacobian_columns = tuple(sorted({int(c) for c in dz.sparsity().get_col()}))
         """Columns of ``[x; u]`` the learner's input depends on (where the residual's Jacobian
         can be nonzero)."""
@@ -139,16 +140,21 @@ class ResidualModel:
         """Numeric learner inputs for states (N, n) and controls (N, m) -> (N, d_in)."""
         X = np.atleast_2d(np.asarray(X, float))
         U = np.atleast_2d(np.asarray(U, float))
-        if X.shape[0] == 1:
-            return np.asarray(self._features_fn(X[0], U[0])).reshape(1, -1)
-        return np.asarray(self._map(self._features_fn, X.shape[0])(X.T, U.T)).T
+        (Z,) = self._map(self._features_fn, X.shape[0])(X.T, U.T)
+        return _rows(Z, X.shape[0])
 
-    def _map(self, fn: ca.Function, n: int) -> ca.Function:
-        """``fn.map(n)``, built once per size (building a map costs more than evaluating it)."""
+    def _map(self, fn: ca.Function, n: int) -> BufferedFunction:
+        """``fn.map(n)`` called on numpy memory (outputs flat, column-major), built once per
+        size (building a map costs more than evaluating it)."""
         key = (fn.name(), n)
         if key not in self._mapped:
-            self._mapped[key] = fn.map(n)
+            self._mapped[key] = BufferedFunction(fn.map(n))
         return self._mapped[key]
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = self.__dict__.copy()
+        state["_mapped"] = {}  # evaluation buffers are rebuilt on demand
+        return state
 
     # ------------------------------------------------------------------ targets
     def targets(self, X: np.ndarray, U: np.ndarray, X_next: np.ndarray
@@ -177,8 +183,9 @@ class ResidualModel:
             if not np.all(np.isfinite(arr)):
                 raise ValueError(f"{name} contains NaN or inf")
         X_next = self.unwrap_like(X_next, X)
-        Z, Y = self._map(self._target_fn, X.shape[0])(X.T, U.T, X_next.T)
-        Z, Y = np.asarray(Z).T.reshape(-1, self.n_inputs), np.asarray(Y).T
+        N = X.shape[0]
+        Z, Y = self._map(self._target_fn, N)(X.T, U.T, X_next.T)
+        Z, Y = _rows(Z, N), _rows(Y, N)
         if not np.all(np.isfinite(Y)):
             raise ValueError("residual targets are not finite (a transition the nominal model "
                              "cannot reproduce with any constant residual?)")
@@ -217,8 +224,9 @@ class ResidualModel:
         if not (np.all(np.isfinite(X)) and np.all(np.isfinite(U))):
             raise ValueError("linearize got a non-finite state or control")
         Z, dZ = self._map(self._features_jac_fn, M)(X.T, U.T)
-        Z = np.asarray(Z).T
-        dZ = np.asarray(dZ).reshape(self.n_inputs, M, -1).transpose(1, 0, 2)  # (M, d_in, n+m)
+        Z = _rows(Z, M)
+        dZ = np.ascontiguousarray(dZ.reshape(M * (n + m), self.n_inputs).T)
+        dZ = dZ.reshape(self.n_inputs, M, -1).transpose(1, 0, 2)  # (M, d_in, n+m)
         if variance:
             mean, std = learner.predict(Z, return_std=True)
             var = np.asarray(std) ** 2
@@ -226,3 +234,10 @@ class ResidualModel:
             mean, var = learner.predict(Z), None
         grad = learner.predict_gradient(Z)  # (M, d_out, d_in)
         return np.asarray(mean), np.einsum("kid,kdj->kij", grad, dZ), var
+
+
+def _rows(flat: np.ndarray, n: int) -> np.ndarray:
+    """A mapped function's flat column-major (d, n) output as (n, d) rows, Fortran-ordered as
+    the transpose of a DM's array was (the learners' results depend on the layout in the last
+    bits: BLAS sums in another order)."""
+    return np.asfortranarray(flat.reshape(n, -1))
