@@ -603,6 +603,17 @@ def test_buffered_function_equals_the_plain_call() -> None:
         buffered(A)
     with pytest.raises(ValueError, match="sparse"):
         BufferedFunction(ca.Function("g", [b], [ca.diag(b)]))
+    # by names, with a solver's statistics: min (x0 - p)^2 + (x1 - 1)^2 s.t. -1 <= x0 + x1 <= 1
+    x, p = ca.MX.sym("x", 2), ca.MX.sym("p")
+    solver = BufferedFunction(ca.nlpsol("s", "ipopt", {"x": x, "p": p, "g": x[0] + x[1],
+                                                       "f": (x[0] - p) ** 2 + (x[1] - 1) ** 2},
+                                        {"ipopt.print_level": 0, "print_time": False}))
+    for target, expected in ((3.0, [1.5, -0.5]), (-1.0, [-1.0, 1.0])):
+        res = solver.call(p=target, lbg=-1.0, ubg=1.0)
+        np.testing.assert_allclose(res["x"], expected, atol=1e-7)
+        assert solver.stats()["return_status"] == "Solve_Succeeded"
+    with pytest.raises(ValueError, match="no inputs"):
+        solver.call(q=1.0)
 
 
 def test_path_constraints_hold_at_held_interval_ends() -> None:

@@ -63,6 +63,21 @@ class BufferedFunction:
         self._eval()
         return tuple(out.copy() for out in self._out)
 
+    def call(self, **kwargs: Any) -> dict[str, np.ndarray]:
+        """Evaluate by input names (an omitted input takes the Function's default, e.g.
+        -inf for a solver's ``lbx``, as in ``fn(**kwargs)``); returns the outputs by name."""
+        unknown = set(kwargs) - set(self.fn.name_in())
+        if unknown:
+            raise ValueError(f"{self.fn.name()} has no inputs {sorted(unknown)}")
+        args = [kwargs[name] if name in kwargs else np.full(size, self.fn.default_in(i))
+                for i, (name, size) in enumerate(zip(self.fn.name_in(), self._sizes,
+                                                     strict=True))]
+        return dict(zip(self.fn.name_out(), self(*args), strict=True))
+
+    def stats(self) -> dict[str, Any]:
+        """The statistics of the last evaluation (a solver's iterations, status, ...)."""
+        return dict(self._buffer.stats())
+
     def __getstate__(self) -> dict[str, Any]:
         raise TypeError("BufferedFunction is not picklable (it holds CasADi evaluation "
                         "memory): rebuild it from its Function")

@@ -49,6 +49,7 @@ import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from gp_agents.pseudospectral.buffered import BufferedFunction
 from gp_agents.pseudospectral.nodes import differentiation_matrix, legendre_gauss, support_points
 from gp_agents.pseudospectral.problem import OptimalControlProblem
 from gp_agents.pseudospectral.solution import (
@@ -454,6 +455,7 @@ class GaussPseudospectralSolver:
                                    ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])
             opts["hess_lag"] = hess_lag.expand() if self.expand else hess_lag
         self._solver = ca.nlpsol("gpm_nlp", self.solver_name, nlp, opts)
+        self._buffered_solver = BufferedFunction(self._solver)
 
     # ------------------------------------------------------------------ initial guesses
     def _default_guess(self, x0: FloatArray | None) -> tuple[FloatArray, FloatArray, float]:
@@ -616,14 +618,14 @@ class GaussPseudospectralSolver:
         args.update({"x0": w0, "lbx": lbx, "ubx": ubx})
 
         t_start = time.perf_counter()
-        try:
-            res = self._solver(**args)
+        try:  # on numpy memory: no DM conversion of p (a GP's parameters: ~1e5 numbers)
+            res: dict[str, Any] | None = self._buffered_solver.call(**args)
             error: str | None = None
         except RuntimeError as err:  # CasADi raises on evaluation errors with some plugins
             res, error = None, str(err).strip().splitlines()[-1] if str(err).strip() else "error"
         solve_time = time.perf_counter() - t_start
         try:
-            stats = dict(self._solver.stats())
+            stats = self._buffered_solver.stats()
         except RuntimeError:  # no stats after an early failure
             stats = {}
         return self._make_solution(res, stats, error, solve_time, p_arr, w0)
@@ -738,7 +740,7 @@ class GaussPseudospectralSolver:
             w = np.asarray(res["x"], dtype=float).ravel()
             lam_x = np.asarray(res["lam_x"], dtype=float).ravel()
             lam_g = np.asarray(res["lam_g"], dtype=float).ravel()
-            cost = float(res["f"])
+            cost = float(np.asarray(res["f"], dtype=float).ravel()[0])
             status = str(stats.get("return_status", "unknown"))
             success = bool(stats.get("success", False))
             if not (np.all(np.isfinite(w)) and np.isfinite(cost)):
