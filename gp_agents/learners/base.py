@@ -12,6 +12,7 @@ is the form the paper gives for the SSGP, ``sigma_n^2 (1 + phi^T A^{-1} phi)``.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections.abc import Callable
 from typing import Any
 
 import casadi as ca
@@ -152,11 +153,19 @@ class BaseGPLearner(ABC):
         self._check_fitted()
         layout = self._layout()
         zs = sym_standardize(z, layout.unpack(theta, "z_mean"), layout.unpack(theta, "z_std"))
+        return self._sym_rows(theta, variance,
+                              lambda j: self._sym_mean_var(zs, theta, j, variance))
+
+    def _sym_rows(self, theta: ca.SX | ca.MX, variance: bool,
+                  output: Callable[[int], tuple[Any, Any]]) -> ca.SX | ca.MX:
+        """Every output's mean (or variance) in the data's units, stacked: ``output(j)`` gives
+        output ``j``'s standardized mean and variance."""
+        layout = self._layout()
         y_mean = layout.unpack(theta, "y_mean")
         y_std = layout.unpack(theta, "y_std")
         rows = []
         for j in range(self.n_outputs_):
-            m, v = self._sym_mean_var(zs, theta, j, variance)
+            m, v = output(j)
             rows.append(y_std[j] ** 2 * v if variance else y_mean[j] + y_std[j] * m)
         return ca.vertcat(*rows)
 
@@ -179,13 +188,8 @@ class BaseGPLearner(ABC):
             raise ValueError(f"Z must have {d} rows (one column per point), got {Z.shape}")
         Zs = (Z - ca.repmat(layout.unpack(theta, "z_mean"), 1, M)) / ca.repmat(
             layout.unpack(theta, "z_std"), 1, M)
-        y_mean = layout.unpack(theta, "y_mean")
-        y_std = layout.unpack(theta, "y_std")
-        rows = []
-        for j in range(self.n_outputs_):
-            m, v = self._sym_mean_var_batch(Zs, theta, j, variance)
-            rows.append(y_std[j] ** 2 * v if variance else y_mean[j] + y_std[j] * m)
-        return ca.vertcat(*rows)
+        return self._sym_rows(theta, variance,
+                              lambda j: self._sym_mean_var_batch(Zs, theta, j, variance))
 
     def casadi_mean(self, z: ca.SX | ca.MX, theta: ca.SX | ca.MX) -> ca.SX | ca.MX:
         """Predictive mean as a CasADi expression.
