@@ -91,7 +91,7 @@ class PseudospectralMPC:
         warm_start_duals: a warm IPOPT solve also starts from the previous solve's multipliers
             with IPOPT's warm-start options (:class:`~gp_agents.mpc.planner.Planner`). None: off
             for ``"converged"``, on for the RTI's fallback solves. Measured (``rti`` preset,
-            ``benchmarks/results/rti/report.md``): 0.5-0.75x the converged step on the
+            ``benchmarks/results/rti/report.md``): 0.55-0.75x the converged step on the
             quadrotor and Dubins vehicle at the same outcomes, but a 2.5% higher cost for the
             oracle cart pole (13.32 vs 12.99, intervals disjoint: it stays in the previous
             plan's basin of the swing-up), so the converged default stays off.
