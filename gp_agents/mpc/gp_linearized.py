@@ -10,6 +10,11 @@ per IPOPT iteration with its second derivatives. The plan is optimal for the exp
 the GP: after every solve the GP is evaluated at the plan's nodes and the expansion's error
 recorded (:meth:`LinearizedGP.plan_error`); a fixed point of re-linearizing about the plan is a
 KKT point of the exact OCP (model values and first derivatives agree there).
+
+The same expansion and error also exist as CasADi expressions of the learner's exported
+parameters (:meth:`LinearizedGP.node_param_expr`, :meth:`LinearizedGP.plan_error_expr`), so that
+the real-time iteration computes them inside its one compiled step; tests check both paths
+against each other.
 """
 
 from __future__ import annotations
