@@ -597,6 +597,10 @@ def test_buffered_function_equals_the_plain_call() -> None:
     np.testing.assert_array_equal(out[1], np.asarray(ref[1]).ravel(order="F"))
     out[0][:] = np.nan  # results are copies: the next call is unaffected
     np.testing.assert_array_equal(buffered(A, B)[1], np.sin(A).ravel(order="F"))
+    import pickle
+
+    np.testing.assert_array_equal(pickle.loads(pickle.dumps(buffered))(A, B)[0],
+                                  np.asarray(ref[0]).ravel(order="F"))
     with pytest.raises(ValueError, match="needs 4 numbers"):
         buffered(A, B[:3])
     with pytest.raises(ValueError, match="takes 2 inputs"):

@@ -24,7 +24,8 @@ class BufferedFunction:
         fn: a Function whose inputs and outputs are all dense (any shape: they are read and
             written column-major, as flat vectors of their ``nnz``).
 
-    Calling it with one array-like per input (a matrix input may be given as its (rows, cols)
+    One set of buffers per instance: not for concurrent calls from several threads. Calling
+    it with one array-like per input (a matrix input may be given as its (rows, cols)
     array: it is read column-major, as CasADi stores it) returns a tuple of fresh (nnz,) float
     arrays, one per output, column-major (copies: the buffers are reused by the next call).
 
@@ -79,5 +80,7 @@ class BufferedFunction:
         return dict(self._buffer.stats())
 
     def __getstate__(self) -> dict[str, Any]:
-        raise TypeError("BufferedFunction is not picklable (it holds CasADi evaluation "
-                        "memory): rebuild it from its Function")
+        return {"fn": self.fn}  # the buffers are memory of this process: rebuilt on loading
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__init__(state["fn"])
