@@ -143,6 +143,11 @@ class ResidualModel:
         (Z,) = self._map(self._features_fn, X.shape[0])(X.T, U.T)
         return _rows(Z, X.shape[0])
 
+    def input_function(self, jacobian: bool = False) -> ca.Function:
+        """The input map as a CasADi Function, for compiled expressions: ``(x, u) -> z``
+        (d_in,), or with ``jacobian`` ``(x, u) -> (z, dz/d[x; u])`` ((d_in, n + m), dense)."""
+        return self._features_jac_fn if jacobian else self._features_fn
+
     def _map(self, fn: ca.Function, n: int) -> BufferedFunction:
         """``fn.map(n)`` called on numpy memory (outputs flat, column-major), built once per
         size (building a map costs more than evaluating it)."""

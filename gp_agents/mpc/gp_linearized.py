@@ -119,11 +119,10 @@ class LinearizedGP(LearnedTerm):
     def _mean_function(self, M: int, n_theta: int) -> ca.Function:
         """``(P, theta) -> mean``: the learned mean (d_out, M) at M node points ``P = [X; U]``
         (n + m, M) as matrix operations (the learner's ``casadi_mean_batch``)."""
-        res = self.residual
-        n, m = res.model.n_states, res.model.n_controls
-        x, u = ca.SX.sym("x", n), ca.SX.sym("u", m)
-        inputs = ca.Function("learner_inputs", [x, u], [res.features(x, u)]).map(M)
-        P, theta = ca.MX.sym("P", n + m, M), ca.MX.sym("theta", n_theta)
+        n = self.residual.model.n_states
+        inputs = self.residual.input_function().map(M)
+        P = ca.MX.sym("P", n + self.residual.model.n_controls, M)
+        theta = ca.MX.sym("theta", n_theta)
         mean = self.learner.casadi_mean_batch(inputs(P[:n, :], P[n:, :]), theta)
         return ca.Function("learned_mean", [P, theta], [mean])
 
@@ -136,16 +135,14 @@ class LinearizedGP(LearnedTerm):
         The mean at all nodes at once by matrix operations (the learner's
         ``casadi_mean_batch``); its Jacobian in the learner's inputs is block diagonal (node
         k's mean depends on node k's inputs only) and is chained with each node's input-map
-        Jacobian. (Measured on the quadrotor: 0.4 ms per step, against 0.85 ms for a mapped
-        per-node MX function, 3.6 ms for forward derivatives seeded at every node, and 3.3 ms
-        for the learner's scalar SX graph.)"""
+        Jacobian. (An ad-hoc timing on the quadrotor, not kept in the repository, found this
+        form the fastest of four: a mapped per-node MX function, forward derivatives seeded
+        at every node and the learner's scalar SX graph were slower; the step's time is what
+        the ``rti`` preset measures.)"""
         res = self.residual
         n, m = res.model.n_states, res.model.n_controls
         M, d_in, d_out = X.shape[1], res.n_inputs, res.n_outputs
-        x, u = ca.SX.sym("x", n), ca.SX.sym("u", m)
-        z = res.features(x, u)
-        Z, dZ = ca.Function("learner_inputs", [x, u],
-                            [z, ca.jacobian(z, ca.vertcat(x, u))]).map(M)(X, U)
+        Z, dZ = res.input_function(jacobian=True).map(M)(X, U)
         Zs, ts = ca.MX.sym("Z", d_in, M), ca.MX.sym("theta", theta.shape)
         mean_s = self.learner.casadi_mean_batch(Zs, ts)
         G = ca.jacobian(ca.vec(mean_s), ca.vec(Zs))

@@ -1,8 +1,9 @@
 """Calling a CasADi Function with numpy arrays without converting them to ``DM``.
 
 ``f(a)`` with a numpy array converts it element by element into a ``casadi.DM`` and the results
-back (measured here: about 0.1 us per element each way, so 7 ms for the 66k parameters of a
-quadrotor SSGP with r = 50, against 0.02 ms for the same call through the buffer interface).
+back, which is slow for large inputs such as a GP's parameter vector (tens of thousands of
+numbers for the quadrotor's SSGP; an ad-hoc timing, not kept in the repository, put the
+conversion at milliseconds per call, the buffered call at tens of microseconds).
 CasADi's buffer interface (``Function.buffer()``, casadi issue #1511) evaluates on memory the
 caller owns instead: :class:`BufferedFunction` wraps it for dense vector inputs and outputs.
 """
