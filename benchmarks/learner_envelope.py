@@ -78,7 +78,11 @@ VARIANTS: dict[str, Callable[[], Any]] = {
     "bounded": _ssgp(**CAPPED),  # (a) and signal std in [0.1, 3]
     "noise05-f98": _ssgp(0.98, **NOISE05),  # (c)
     "noise05-f999": _ssgp(0.999, **NOISE05),
+    "f95": _ssgp(0.95),  # (c) strong constant forgetting (half-life 14 samples, 0.7 s)
+    "f90": _ssgp(0.90),
     "linear": _ssgp(linear=True),  # (b) linear + SE features
+    "linear-f98": _ssgp(0.98, linear=True),
+    "linear-f95": _ssgp(0.95, linear=True),
     "linear-noise05": _ssgp(linear=True, **NOISE05),
     "linear-noise1": _ssgp(linear=True, **NOISE1),
     "linear-noise2": _ssgp(linear=True, **NOISE2),

@@ -583,3 +583,30 @@ def test_a_pickled_agent_acts_identically_after_loading(scheme):
     assert clone.n_builds == agent.n_builds + 1
     if scheme == "rti":  # the clone's plan warm-starts its rebuilt NLP's real-time iteration
         assert all(r.status.startswith("RTI") for r in clone.diagnostics[-8:])
+
+
+def test_sensitivity_inputs_explain_a_parameter_error():
+    """With ``sensitivities=True`` the learner's extra inputs are ``d f_p[I] / d p`` at the
+    nominal values: a least-squares fit of the true residual of other parameter values on them
+    leaves a small fraction of it (first-order Taylor), checked against the physics directly."""
+    env = gym.make(CART, scenario="online")
+    env.reset(seed=0)
+    nominal = env.unwrapped.nominal_model
+    truth = gp_envs.oracle_model(env)
+    res = ResidualModel(nominal, sensitivities=True)
+    base = ResidualModel(nominal)
+    n_sens = res.n_inputs - base.n_inputs
+    assert n_sens == len(res.input_names) - len(base.input_names) > 0
+    rng = np.random.default_rng(0)
+    X = np.column_stack([rng.uniform(-1, 1, 300), rng.uniform(0, 2 * np.pi, 300),
+                         rng.uniform(-3, 3, 300), rng.uniform(-8, 8, 300)])
+    U = rng.uniform(-20, 20, (300, 1))
+    Z = res.inputs(X, U)
+    np.testing.assert_array_equal(Z[:, :base.n_inputs], base.inputs(X, U))
+    Y = (truth.f(X, U) - nominal.f(X, U))[:, list(res.uncertain_indices)]
+    for j in range(Y.shape[1]):
+        cols = [base.n_inputs + i for i, name in enumerate(res.input_names[base.n_inputs:])
+                if name.startswith(f"d({nominal.state_names[res.uncertain_indices[j]]})")]
+        w, *_ = np.linalg.lstsq(Z[:, cols], Y[:, j], rcond=None)
+        assert np.sqrt(np.mean((Y[:, j] - Z[:, cols] @ w) ** 2)) < 0.1 * np.sqrt(
+            np.mean(Y[:, j] ** 2))

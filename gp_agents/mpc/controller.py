@@ -75,6 +75,9 @@ class PseudospectralMPC:
         uncertain_indices: state components with a learned residual (default: the model's
             accelerations). input_indices: components fed to the learner (None: all;
             ``"model"``: those the parametric nominal model's uncertain rates depend on).
+        sensitivities: the learner also sees the nominal model's parameter sensitivities
+            (:class:`~gp_agents.residual.ResidualModel`): with a learner with linear features
+            the residual gets an explicit parametric part.
         uncertainty_radius: ``kappa`` >= 0 of the obstacle constraint (:mod:`~gp_agents.mpc.
             ocp`); 0 reproduces the paper's run.
         learned_dynamics: how the learner enters the NLP: ``"exact"`` (:class:`GPInNLP`),
@@ -103,7 +106,7 @@ class PseudospectralMPC:
                  n_intervals: int | None = None, replan_every: int = 1, held_nodes: int = 3,
                  learn_online: bool = True, uncertain_indices: tuple[int, ...] | None = None,
                  input_indices: tuple[int, ...] | Literal["model"] | None = None,
-                 uncertainty_radius: float = 0.0,
+                 sensitivities: bool = False, uncertainty_radius: float = 0.0,
                  learned_dynamics: str | LearnedTerm = "exact", solver: str = "ipopt",
                  solver_options: Mapping[str, Any] | None = None, max_iterations: int = 500,
                  state_margin: float = 0.05, state_penalty: float | None = 1e4,
@@ -152,7 +155,7 @@ class PseudospectralMPC:
         self.learn_online = bool(learn_online)
         self.solver, self.solver_options = solver, dict(solver_options or {})
         self.max_iterations, self.jit = int(max_iterations), bool(jit)
-        self.residual = ResidualModel(model, uncertain_indices, input_indices)
+        self.residual = ResidualModel(model, uncertain_indices, input_indices, sensitivities)
         self.term: LearnedTerm = (copy.deepcopy(learned_dynamics) if learner is not None
                                   else NoLearnedTerm())
         self._attach()
@@ -242,7 +245,8 @@ class PseudospectralMPC:
                     "trained on residuals of the previous one; call agent.pretrain(...) again "
                     "after the reset (or build a new agent)")
             self.residual = ResidualModel(model, self.residual.uncertain_indices,
-                                          self.residual.input_indices)
+                                          self.residual.input_indices,
+                                          self.residual.sensitivities)
             self._attach()
         self.model = model
         if self.planner is not None:
