@@ -22,6 +22,11 @@ Speed variants of ``ssgp-mpc`` (:data:`SPEED_VARIANTS`, presets ``speed-options`
 (``input_indices="model"``), ``ssgp-mpc-linearized`` (``learned_dynamics="linearized"``) and
 ``ssgp-mpc-linearized-model-inputs`` (both).
 
+Variants with an explicit parametric part of the residual (:data:`SENSITIVITY_VARIANTS`, preset
+``robustness``): ``ssgp-mpc-sensitivities`` (the learner also sees the nominal model's parameter
+sensitivities, ``sensitivities=True``, and has linear features) and
+``ssgp-mpc-linearized-sensitivities``.
+
 Real-time-iteration variants (:data:`RTI_VARIANTS`, preset ``rti``): ``nominal-mpc-rti``,
 ``oracle-mpc-rti``, ``ssgp-mpc-rti`` (``scheme="rti"``; the SSGP one with the GP linearized);
 and their converged references warm-started with the previous multipliers
@@ -146,13 +151,13 @@ def _mpc_recipes() -> dict[str, ControllerRecipe]:
     return out
 
 
-def _ssgp_variant(suffix: str, label: str, description: str, **settings: Any
-                  ) -> tuple[str, ControllerRecipe]:
+def _ssgp_variant(suffix: str, label: str, description: str, learner: str = "ssgp",
+                  **settings: Any) -> tuple[str, ControllerRecipe]:
     """``ssgp-mpc-<suffix>``: the online SSGP-MPC with extra :class:`PseudospectralMPC`
-    settings."""
+    settings (and the learner kind of :func:`make_learner`)."""
     name = f"ssgp-mpc-{suffix}"
     return name, ControllerRecipe(name, f"SSGP MPC, {label}", "mpc", description,
-                                  learner="ssgp", learn_online=True,
+                                  learner=learner, learn_online=True,
                                   settings=tuple(settings.items()))
 
 
@@ -174,6 +179,20 @@ SPEED_VARIANTS: dict[str, ControllerRecipe] = dict([
 ])
 """Variants of ``ssgp-mpc`` that trade exactness or generality for speed (issue: the SSGP-MPC's
 step time), compared by the ``speed-options`` and ``linearized`` presets."""
+
+SENSITIVITY_VARIANTS: dict[str, ControllerRecipe] = dict([
+    _ssgp_variant("sensitivities", "sensitivities",
+                  "ssgp-mpc whose learner also sees the nominal model's parameter sensitivities "
+                  "d f_p/d p (sensitivities=True) and has linear features "
+                  "(online_ssgp(linear_features=True)): an explicit parametric part of the "
+                  "residual", learner="ssgp-linear", sensitivities=True),
+    _ssgp_variant("linearized-sensitivities", "linearized, sensitivities",
+                  "ssgp-mpc-sensitivities planning with the GP residual linearized per node "
+                  "(learned_dynamics='linearized')", learner="ssgp-linear",
+                  sensitivities=True, learned_dynamics="linearized"),
+])
+"""Variants of ``ssgp-mpc`` whose residual has an explicit parametric part (issue: online
+learning across the envelope), compared by the ``robustness`` preset."""
 
 
 def _rti(base: str, label: str, description: str, learner: str | None = None,
@@ -210,6 +229,7 @@ faster converged reference)."""
 CONTROLLERS: dict[str, ControllerRecipe] = {
     **_mpc_recipes(),
     **SPEED_VARIANTS,
+    **SENSITIVITY_VARIANTS,
     **RTI_VARIANTS,
     **WARM_DUAL_VARIANTS,
     "sac": ControllerRecipe("sac", "SAC", "rl", "shipped stable-baselines3 SAC policy",
@@ -284,7 +304,8 @@ class OracleModel:
 
 
 def make_learner(kind: str) -> Any:
-    """A fresh residual learner of the recipe kind ``"exact"`` or ``"ssgp"``."""
+    """A fresh residual learner of the recipe kind ``"exact"``, ``"ssgp"`` or ``"ssgp-linear"``
+    (:func:`gp_agents.online_ssgp` with linear features)."""
     from gp_agents import online_ssgp
     from gp_agents.learners import ExactGP
 
@@ -292,6 +313,8 @@ def make_learner(kind: str) -> Any:
         return ExactGP()
     if kind == "ssgp":
         return online_ssgp()
+    if kind == "ssgp-linear":
+        return online_ssgp(linear_features=True)
     raise ValueError(f"unknown learner kind {kind!r}")
 
 

@@ -71,6 +71,8 @@ _SSGP_LINEARIZED = "#CC79A7"  # reddish purple
 _SSGP_NOMINAL_HESSIAN = "#56B4E9"  # sky blue
 _SSGP_MODEL_INPUTS = "#D55E00"  # vermillion
 _SSGP_LINEARIZED_MODEL_INPUTS = "#8C564B"  # brown
+_SSGP_SENSITIVITIES = "#F0E442"  # yellow
+_SSGP_LINEARIZED_SENSITIVITIES = "#17BECF"  # cyan
 _SAC = "#9467BD"  # purple
 _PPO = "#BCBD22"  # olive
 
@@ -92,6 +94,8 @@ STYLES: dict[str, Style] = {
     "ssgp-mpc-model-inputs": Style(_SSGP_MODEL_INPUTS, RECEDING, "P"),
     "ssgp-mpc-linearized": Style(_SSGP_LINEARIZED, RECEDING, "v"),
     "ssgp-mpc-linearized-model-inputs": Style(_SSGP_LINEARIZED_MODEL_INPUTS, RECEDING, "h"),
+    "ssgp-mpc-sensitivities": Style(_SSGP_SENSITIVITIES, RECEDING, "H"),
+    "ssgp-mpc-linearized-sensitivities": Style(_SSGP_LINEARIZED_SENSITIVITIES, RECEDING, "2"),
     # the SSGP RTI plans with the residual linearized per node, as ssgp-mpc-linearized does
     "ssgp-mpc-rti": Style(_SSGP_LINEARIZED, RTI, "8"),
     "sac": Style(_SAC, RECEDING, "*"),

@@ -9,7 +9,8 @@ __all__ = ["online_ssgp"]
 
 
 def online_ssgp(n_frequencies: int = 50, forgetting_factor: float = 0.995,
-                random_state: int | None = 0) -> IncrementalSSGP:
+                random_state: int | None = 0, linear_features: bool = False
+                ) -> IncrementalSSGP:
     """The online learner of the paper's Algorithm 1, as this project's benchmarks use it.
 
     An :class:`~gp_agents.learners.IncrementalSSGP` whose hyperparameters come from the SSGP's
@@ -23,7 +24,11 @@ def online_ssgp(n_frequencies: int = 50, forgetting_factor: float = 0.995,
         n_frequencies: ``r`` (``2r`` features per output).
         forgetting_factor: ``lambda``; 0.995 halves a sample's weight in ~140 steps (7 s).
         random_state: seeds the frequency draws.
+        linear_features: append linear features of the inputs (:class:`~gp_agents.learners.
+            SSGP`); with the MPC's ``sensitivities=True`` inputs they are the residual's
+            explicit parametric part (:mod:`gp_agents.residual`).
     """
     return IncrementalSSGP(n_frequencies, forgetting_factor=forgetting_factor,
                            hyperparameters="ssgp", random_state=random_state,
+                           linear_features=linear_features,
                            bounds=HyperparameterBounds(length_scale=(1.0, 100.0)))
