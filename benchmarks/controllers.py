@@ -25,7 +25,9 @@ Speed variants of ``ssgp-mpc`` (:data:`SPEED_VARIANTS`, presets ``speed-options`
 Variants with an explicit parametric part of the residual (:data:`SENSITIVITY_VARIANTS`, preset
 ``robustness``): ``ssgp-mpc-sensitivities`` (the learner also sees the nominal model's parameter
 sensitivities, ``sensitivities=True``, and has linear features) and
-``ssgp-mpc-linearized-sensitivities``.
+``ssgp-mpc-linearized-sensitivities``; and ``ssgp-mpc-adaptive`` / ``ssgp-mpc-linearized-adaptive``,
+whose learner also restarts when it detects that the system changed
+(:class:`gp_agents.learners.ChangeDetector`).
 
 Real-time-iteration variants (:data:`RTI_VARIANTS`, preset ``rti``): ``nominal-mpc-rti``,
 ``oracle-mpc-rti``, ``ssgp-mpc-rti`` (``scheme="rti"``; the SSGP one with the GP linearized);
@@ -190,6 +192,15 @@ SENSITIVITY_VARIANTS: dict[str, ControllerRecipe] = dict([
                   "ssgp-mpc-sensitivities planning with the GP residual linearized per node "
                   "(learned_dynamics='linearized')", learner="ssgp-linear",
                   sensitivities=True, learned_dynamics="linearized"),
+    _ssgp_variant("adaptive", "adaptive",
+                  "ssgp-mpc-sensitivities whose learner also restarts from the new regime's "
+                  "samples when its one-step prediction errors show that the system changed "
+                  "(online_ssgp(linear_features=True, change_detector=ChangeDetector()))",
+                  learner="ssgp-adaptive", sensitivities=True),
+    _ssgp_variant("linearized-adaptive", "linearized, adaptive",
+                  "ssgp-mpc-adaptive planning with the GP residual linearized per node "
+                  "(learned_dynamics='linearized')", learner="ssgp-adaptive",
+                  sensitivities=True, learned_dynamics="linearized"),
 ])
 """Variants of ``ssgp-mpc`` whose residual has an explicit parametric part (issue: online
 learning across the envelope), compared by the ``robustness`` preset."""
@@ -304,10 +315,11 @@ class OracleModel:
 
 
 def make_learner(kind: str) -> Any:
-    """A fresh residual learner of the recipe kind ``"exact"``, ``"ssgp"`` or ``"ssgp-linear"``
-    (:func:`gp_agents.online_ssgp` with linear features)."""
+    """A fresh residual learner of the recipe kind ``"exact"``, ``"ssgp"``, ``"ssgp-linear"``
+    (:func:`gp_agents.online_ssgp` with linear features) or ``"ssgp-adaptive"`` (linear
+    features and a :class:`~gp_agents.learners.ChangeDetector`)."""
     from gp_agents import online_ssgp
-    from gp_agents.learners import ExactGP
+    from gp_agents.learners import ChangeDetector, ExactGP
 
     if kind == "exact":
         return ExactGP()
@@ -315,6 +327,8 @@ def make_learner(kind: str) -> Any:
         return online_ssgp()
     if kind == "ssgp-linear":
         return online_ssgp(linear_features=True)
+    if kind == "ssgp-adaptive":
+        return online_ssgp(linear_features=True, change_detector=ChangeDetector())
     raise ValueError(f"unknown learner kind {kind!r}")
 
 

@@ -309,7 +309,7 @@ def pendulum(seeds: Sequence[int] = tuple(range(1, 11))) -> Experiment:
 
 ROBUSTNESS_CONTROLLERS = ("nominal-mpc", "ssgp-mpc", "ssgp-mpc-linearized",
                           "ssgp-mpc-sensitivities", "ssgp-mpc-linearized-sensitivities",
-                          "oracle-mpc")
+                          "ssgp-mpc-adaptive", "ssgp-mpc-linearized-adaptive", "oracle-mpc")
 """The controllers of the robustness envelope (the oracle is each cell's reference)."""
 ROBUSTNESS_SEEDS = tuple(range(200, 220))
 """Evaluation seeds of the robustness preset: never used to tune anything (the issue's own
@@ -354,7 +354,8 @@ def robustness(seeds: Sequence[int] = ROBUSTNESS_SEEDS,
     return Experiment(
         "robustness", "Online learning across the envelope",
         "Nominal, SSGP (GP in the NLP, and linearized; each also with the parameter "
-        "sensitivities as inputs and linear features) and oracle MPC on randomized truth "
+        "sensitivities as inputs and linear features, and with those and a change detector) "
+        "and oracle MPC on randomized truth "
         "(spread 0.05, 0.1, 0.2; initial data from the system controlled, *same*, or from an "
         "independent draw, *diff*), perturbed starts, observation noise "
         f"({ROBUSTNESS_NOISE:g} per component), and the time-varying scenarios (cart pole "

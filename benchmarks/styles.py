@@ -73,6 +73,8 @@ _SSGP_MODEL_INPUTS = "#D55E00"  # vermillion
 _SSGP_LINEARIZED_MODEL_INPUTS = "#8C564B"  # brown
 _SSGP_SENSITIVITIES = "#F0E442"  # yellow
 _SSGP_LINEARIZED_SENSITIVITIES = "#17BECF"  # cyan
+_SSGP_ADAPTIVE = "#2CA02C"  # green
+_SSGP_LINEARIZED_ADAPTIVE = "#7F7F7F"  # grey
 _SAC = "#9467BD"  # purple
 _PPO = "#BCBD22"  # olive
 
@@ -96,6 +98,8 @@ STYLES: dict[str, Style] = {
     "ssgp-mpc-linearized-model-inputs": Style(_SSGP_LINEARIZED_MODEL_INPUTS, RECEDING, "h"),
     "ssgp-mpc-sensitivities": Style(_SSGP_SENSITIVITIES, RECEDING, "H"),
     "ssgp-mpc-linearized-sensitivities": Style(_SSGP_LINEARIZED_SENSITIVITIES, RECEDING, "2"),
+    "ssgp-mpc-adaptive": Style(_SSGP_ADAPTIVE, RECEDING, "$a$"),
+    "ssgp-mpc-linearized-adaptive": Style(_SSGP_LINEARIZED_ADAPTIVE, RECEDING, "$l$"),
     # the SSGP RTI plans with the residual linearized per node, as ssgp-mpc-linearized does
     "ssgp-mpc-rti": Style(_SSGP_LINEARIZED, RTI, "8"),
     "sac": Style(_SAC, RECEDING, "*"),

@@ -13,6 +13,7 @@ from scipy.linalg import cholesky
 
 from gp_agents.learners import (
     SSGP,
+    ChangeDetector,
     ExactGP,
     GPHyperparameters,
     IncrementalSSGP,
@@ -675,3 +676,106 @@ def test_save_load_roundtrip_linear(tmp_path, data):
     loaded.update(Z[80:], Y[80:])
     model.update(Z[80:], Y[80:])
     np.testing.assert_array_equal(model.predict(Zt), loaded.predict(Zt))
+
+
+# ---------------------------------------------------------------------------- change detection
+def test_change_detector_declares_a_persistent_change_only():
+    rng = np.random.default_rng(0)
+    det = ChangeDetector(ratio=10.0, patience=3, history=20)
+    det.reset(2)
+    quiet = lambda: 0.01 * np.abs(rng.standard_normal(2))  # noqa: E731
+    assert det.threshold() is None  # nothing is surprising before history // 2 errors
+    assert not det.step([5.0, 5.0])
+    assert not any(det.step(quiet()) for _ in range(60))
+    limit = det.threshold()
+    assert limit is not None and np.all(limit > 0)
+    # one surprising sample (a new region of the state space) declares nothing
+    assert not det.step([0.0, 2 * limit[1]])
+    assert not det.step(quiet())
+    assert det.n_surprising_ == 0
+    # a persistent change: the third surprising sample in a row declares it
+    big = 2 * limit
+    assert [det.step(big) for _ in range(3)] == [False, False, True]
+    with pytest.raises(ValueError, match="2 finite numbers"):
+        det.step([np.nan, 0.0])
+    with pytest.raises(ValueError, match="2 finite numbers"):
+        det.step([0.0, 0.0, 0.0])
+    for bad in (dict(ratio=1.0), dict(patience=0), dict(patience=1.5), dict(history=1)):
+        with pytest.raises(ValueError):
+            ChangeDetector(**bad).reset(1)
+    assert ChangeDetector(ratio=5.0).clone().get_params() == dict(ratio=5.0, patience=3,
+                                                                  history=40)
+
+
+def test_incremental_restarts_from_the_new_regime(data, exact_gp):
+    """A stream from the fitted function, then from a shifted one: one change is declared, and
+    the state is then exactly the batch formula over the shifted samples alone (with their
+    own forgetting weights and prior ages); without a detector the old data stay."""
+    Z, Y, Zt, Yt = data
+    shift = np.array([3.0, 30.0])
+    lam, m = 0.99, 1
+    kw = dict(forgetting_factor=lam, prior_refresh=m, hyperparameters=exact_gp, random_state=3)
+    model = IncrementalSSGP(15, change_detector=ChangeDetector(), **kw).fit(Z[:60], Y[:60])
+    plain = IncrementalSSGP(15, **kw).fit(Z[:60], Y[:60])
+    for i in range(60, 90):  # the same function: nothing declared
+        model.update(Z[i : i + 1], Y[i : i + 1])
+    assert model.n_changes_ == 0
+    model.update(Z[90:], Y[90:] + shift)  # one call, samples taken one at a time
+    plain.update(Z[60:90], Y[60:90])
+    plain.update(Z[90:], Y[90:] + shift)
+    assert model.n_changes_ == 1
+    assert model.n_samples_seen_ == len(Z) and model.n_state_samples_ == len(Z) - 90
+    W_ref = _batch_reference(model, Z[90:], Y[90:] + shift, lam, m)
+    np.testing.assert_allclose(model.weights_, W_ref, rtol=1e-8, atol=1e-8 * np.abs(W_ref).max())
+    np.testing.assert_allclose(model.prior_diagonal(),
+                               plain.hyperparameters_.noise_std[:, None] ** 2
+                               * lam ** _simulated_prior_ages(len(Z) - 90, 30, m)[None, :])
+    err_model = np.abs(model.predict(Zt) - (Yt + shift)).mean(axis=0)
+    err_plain = np.abs(plain.predict(Zt) - (Yt + shift)).mean(axis=0)
+    assert np.all(err_model < 0.5 * err_plain)
+
+
+def test_detector_history_is_seeded_with_exact_leave_one_out_errors(data, exact_gp):
+    """The errors seeding the detector at a fit against refitting without each sample (the
+    dense weighted formula with sample i removed from A and b), and a change right after the
+    fit (the system changed between data collection and control) is caught at once."""
+    Z, Y, _, _ = data
+    lam = 0.98
+    det = ChangeDetector(history=12)
+    model = IncrementalSSGP(15, forgetting_factor=lam, prior_refresh=100,
+                            hyperparameters=exact_gp, change_detector=det,
+                            random_state=3).fit(Z[:60], Y[:60])
+    std, hyp = model.standardizer_, model.hyperparameters_
+    Zs, Ys = std.transform_inputs(Z[:60]), std.transform_outputs(Y[:60])
+    wts = lam ** np.arange(59, -1, -1, dtype=float)
+    expected = np.empty((12, 2))
+    for j in range(2):
+        F = model._features(Zs, j)
+        A = F.T @ (wts[:, None] * F) + np.diag(hyp.noise_std[j] ** 2 * np.ones(F.shape[1]))
+        b = F.T @ (wts * Ys[:, j])
+        for k, i in enumerate(range(48, 60)):
+            w = np.linalg.solve(A - wts[i] * np.outer(F[i], F[i]), b - wts[i] * F[i] * Ys[i, j])
+            expected[k, j] = abs(Ys[i, j] - F[i] @ w)
+    seeded = np.array(model.detector_._errors).T
+    np.testing.assert_allclose(seeded, expected, rtol=1e-7, atol=1e-10)
+    model.update(Z[60:64], Y[60:64] + np.array([3.0, 30.0]))
+    # declared at the third shifted sample (patience 3), which the fourth then joins
+    assert model.n_changes_ == 1 and model.n_state_samples_ == 4
+
+
+def test_save_load_roundtrip_change_detector(tmp_path, data, exact_gp):
+    Z, Y, Zt, _ = data
+    model = IncrementalSSGP(12, forgetting_factor=0.99, hyperparameters=exact_gp,
+                            change_detector=ChangeDetector(ratio=8.0, patience=2, history=10),
+                            random_state=5).fit(Z[:60], Y[:60])
+    model.update(Z[60:80], Y[60:80])
+    model.update(Z[80:], Y[80:] + np.array([3.0, 30.0]))
+    assert model.n_changes_ == 1
+    path = tmp_path / "ssgp_detector.npz"
+    model.save(path)
+    loaded = IncrementalSSGP.load(path)
+    assert loaded.change_detector.get_params() == model.change_detector.get_params()
+    assert (loaded.n_changes_, loaded.n_state_samples_) == (1, model.n_state_samples_)
+    np.testing.assert_array_equal(model.predict(Zt), loaded.predict(Zt))
+    with pytest.raises(TypeError, match="ChangeDetector"):
+        IncrementalSSGP(12, change_detector="auto").fit(Z, Y)

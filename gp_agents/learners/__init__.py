@@ -9,6 +9,7 @@ learning". Three learners with a scikit-learn-like API and a common CasADi expor
 """
 
 from ._validation import NotFittedError
+from .change import ChangeDetector
 from .exact_gp import ExactGP
 from .hyperparameters import GPHyperparameters, HyperparameterBounds
 from .incremental import IncrementalSSGP
@@ -18,6 +19,7 @@ from .standardization import Standardizer
 
 __all__ = [
     "SSGP",
+    "ChangeDetector",
     "ExactGP",
     "GPHyperparameters",
     "HyperparameterBounds",

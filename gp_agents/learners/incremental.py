@@ -35,6 +35,15 @@ restored prior amounts ``delta_k``), done by :func:`cholesky_add_rows` in ``O((p
 ``b <- lambda^p b + sum_i lambda^(p-1-i) phi_i y_i``. Hyperparameters, frequencies and the
 standardization are frozen at :meth:`IncrementalSSGP.fit`, so the CasADi parameter vector keeps
 its size.
+
+*Change detection* (``change_detector=ChangeDetector()``, :mod:`gp_agents.learners.change`):
+samples are then added one at a time, each after its one-step prediction error (standardized)
+went to the detector; when the detector declares a change, the state is rebuilt by the batch
+formula from the run of samples that declared it alone (``n`` restarts at the run's length;
+``n_samples_seen_`` keeps counting every sample, ``n_changes_`` counts the changes). At
+:meth:`IncrementalSSGP.fit` the detector's history is seeded with the leave-one-out errors of
+the last fitted samples, ``(y_i - mean_i) / (1 - h_i)`` with ``h_i = lambda^(n-i) phi_i^T
+A^{-1} phi_i`` (the exact leave-one-out error of the weighted Bayesian linear regression).
 """
 
 from __future__ import annotations
@@ -43,9 +52,10 @@ import os
 from pathlib import Path
 
 import numpy as np
-from scipy.linalg import cholesky
+from scipy.linalg import cholesky, solve_triangular
 
 from ._validation import check_training_data
+from .change import ChangeDetector
 from .cholesky_update import cholesky_add_rows
 from .hyperparameters import GPHyperparameters, HyperparameterBounds
 from .ssgp import SSGP, HyperparameterSource
@@ -88,9 +98,13 @@ class IncrementalSSGP(SSGP):
         hyperparameters, bounds, n_restarts, max_iter, max_optimization_samples, normalize,
         random_state, linear_features, linear_std: as in :class:`SSGP` (used once, by
         :meth:`fit`; with linear features the state has ``2r + d_in`` coordinates).
+        change_detector: a :class:`ChangeDetector` (copied at :meth:`fit`), or None: restart
+            from the new regime's samples when the learned function changes (module
+            docstring).
 
     Fitted attributes: those of :class:`SSGP`, with ``n_samples_seen_`` counting every sample
-    since :meth:`fit` (initial batch included).
+    since :meth:`fit` (initial batch included), ``n_state_samples_`` those in the current
+    state (fewer after a change) and ``n_changes_`` the changes declared.
     """
 
     def __init__(
@@ -108,6 +122,7 @@ class IncrementalSSGP(SSGP):
         random_state: int | None = 0,
         linear_features: bool = False,
         linear_std: float = 1.0,
+        change_detector: ChangeDetector | None = None,
     ) -> None:
         super().__init__(
             n_frequencies,
@@ -123,6 +138,7 @@ class IncrementalSSGP(SSGP):
         )
         self.forgetting_factor = forgetting_factor
         self.prior_refresh = prior_refresh
+        self.change_detector = change_detector
 
     def _check_config(self) -> tuple[float, int]:
         lam = float(self.forgetting_factor)
@@ -139,8 +155,46 @@ class IncrementalSSGP(SSGP):
         (N, d_out) and set the state to the batch formula over these ``N`` samples (the same
         state ``N`` sequential updates from the prior would reach). Returns ``self``."""
         self._check_config()
+        if self.change_detector is not None and not isinstance(self.change_detector,
+                                                                ChangeDetector):
+            raise TypeError("change_detector must be a ChangeDetector or None, got "
+                            f"{type(self.change_detector).__name__}")
         super().fit(Z, Y)
+        self._reset_detector()
+        if self.detector_ is not None:  # typical errors of this system (change.py)
+            self.detector_.seed(self._loo_errors(Z[-int(self.detector_.history):],
+                                                 Y[-int(self.detector_.history):], len(Z)))
         return self
+
+    def _loo_errors(self, Z: np.ndarray, Y: np.ndarray, n: int) -> np.ndarray:
+        """(p, d_out) leave-one-out errors (standardized) of the last p of the n fitted samples:
+        ``(y_i - mean_i) / (1 - h_i)``, ``h_i = lambda^(n-i) phi_i^T A^{-1} phi_i``."""
+        std = self.standardizer_
+        assert std is not None
+        lam, _ = self._check_config()
+        Zs, Ys = std.transform_inputs(Z), std.transform_outputs(Y)
+        weight = lam ** np.arange(len(Z) - 1, -1, -1, dtype=float)
+        mean = self._predict_std(Zs, return_var=False)[0]
+        out = np.empty_like(Ys)
+        for j in range(self.n_outputs_):
+            V = solve_triangular(self._chol[j], self._features(Zs, j).T, trans="T",
+                                 check_finite=False)
+            h = weight * np.einsum("ij,ij->j", V, V)
+            out[:, j] = (Ys[:, j] - mean[:, j]) / np.maximum(1.0 - h, 1e-12)
+        return out
+
+    def _reset_detector(self) -> None:
+        self.n_changes_ = 0
+        self.detector_: ChangeDetector | None = None
+        if self.change_detector is not None:
+            self.detector_ = self.change_detector.clone()
+            self.detector_.reset(self.n_outputs_)
+        self._run: list[tuple[np.ndarray, np.ndarray]] = []
+
+    def _set_state(self, chol: list[np.ndarray], b: np.ndarray, n_seen: int,
+                   n_state: int | None = None) -> None:
+        super()._set_state(chol, b, n_seen)
+        self.n_state_samples_ = n_seen if n_state is None else int(n_state)
 
     def _batch_state(
         self, F: np.ndarray, y: np.ndarray, noise_std: float
@@ -160,16 +214,54 @@ class IncrementalSSGP(SSGP):
         """Add ``p`` samples ``Z`` (p, d_in), ``Y`` (p, d_out) in order (the last is newest).
 
         Costs ``O(p r^2)`` per output. On any error the previous state is left untouched.
+        With a change detector the samples go in one at a time (module docstring).
         Returns ``self``.
         """
         self._check_fitted()
-        lam, m = self._check_config()
+        self._check_config()
         Z, Y = check_training_data(Z, Y, self.n_features_in_, self.n_outputs_)
-        std, hyp = self.standardizer_, self.hyperparameters_
-        assert std is not None and hyp is not None
+        std = self.standardizer_
+        assert std is not None
         Zs, Ys = std.transform_inputs(Z), std.transform_outputs(Y)
-        p = Z.shape[0]
-        n0 = self.n_samples_seen_
+        if getattr(self, "detector_", None) is None:
+            self._add(Zs, Ys)
+            return self
+        for zs, ys in zip(Zs, Ys, strict=True):
+            error = ys - self._predict_std(zs[None], return_var=False)[0][0]
+            self._add(zs[None], ys[None])
+            self._detect(zs, ys, error)
+        return self
+
+    def _detect(self, zs: np.ndarray, ys: np.ndarray, error: np.ndarray) -> None:
+        """Pass one sample's error to the detector; on a change rebuild the state from the run
+        of surprising samples that declared it."""
+        det = self.detector_
+        assert det is not None
+        changed = det.step(error)
+        self._run = [*self._run, (zs, ys)] if det.n_surprising_ else []
+        if not changed:
+            return
+        Zr, Yr = np.array([z for z, _ in self._run]), np.array([y for _, y in self._run])
+        hyp = self.hyperparameters_
+        assert hyp is not None
+        chol, b = [], []
+        for j in range(self.n_outputs_):
+            R, bj = self._batch_state(self._features(Zr, j), Yr[:, j], float(hyp.noise_std[j]))
+            chol.append(R)
+            b.append(bj)
+        self._set_state(chol, np.array(b), self.n_samples_seen_, n_state=len(self._run))
+        self.n_changes_ += 1
+        det.reset(self.n_outputs_)
+        self._run = []
+
+    def _add(self, Zs: np.ndarray, Ys: np.ndarray) -> None:
+        """The factor update of the module docstring for standardized samples (p, d_in),
+        (p, d_out)."""
+        lam, m = self._check_config()
+        hyp = self.hyperparameters_
+        assert hyp is not None
+        p = Zs.shape[0]
+        n0 = self.n_state_samples_
         D = self._chol[0].shape[0]
         decay = lam ** np.arange(p - 1, -1, -1, dtype=float)
         if lam < 1.0:
@@ -201,8 +293,7 @@ class IncrementalSSGP(SSGP):
         ]
         if not all(np.all(np.isfinite(np.diag(R))) and np.all(np.diag(R) != 0) for R in new_chol):
             raise FloatingPointError("update produced a singular factor; state left unchanged")
-        self._set_state(new_chol, new_b, n0 + p)
-        return self
+        self._set_state(new_chol, new_b, self.n_samples_seen_ + p, n_state=n0 + p)
 
     def prior_diagonal(self) -> np.ndarray:
         """(d_out, 2r) current prior ``P_n`` diagonal, in standardized units."""
@@ -211,12 +302,14 @@ class IncrementalSSGP(SSGP):
         hyp = self.hyperparameters_
         assert hyp is not None
         D = self._chol[0].shape[0]
-        ages = prior_ages(self.n_samples_seen_, D, m).astype(float)
+        ages = prior_ages(self.n_state_samples_, D, m).astype(float)
         return hyp.noise_std[:, None] ** 2 * lam ** ages[None, :]
 
     # ------------------------------------------------------------------ persistence
     def save(self, path: str | os.PathLike[str]) -> None:
-        """Write the full learner state (settings and fitted state) to an ``.npz`` file."""
+        """Write the full learner state (settings and fitted state) to an ``.npz`` file. A
+        change detector's settings are written, not its error history: a loaded learner's
+        detector starts afresh."""
         self._check_fitted()
         std, hyp = self.standardizer_, self.hyperparameters_
         assert std is not None and hyp is not None
@@ -229,6 +322,10 @@ class IncrementalSSGP(SSGP):
             "normalize": np.array(bool(self.normalize)),
             "random_state": np.array(-1 if rs is None else int(rs)),
             "n_samples_seen": np.array(int(self.n_samples_seen_)),
+            "n_state_samples": np.array(int(self.n_state_samples_)),
+            "change_detector": (np.zeros(0) if self.change_detector is None else np.array(
+                [float(v) for v in self.change_detector.get_params().values()])),
+            "n_changes": np.array(int(getattr(self, "n_changes_", 0))),
             "base_frequencies": self.base_frequencies_,
             "linear_std": (np.zeros(0) if self.linear_std_ is None else self.linear_std_),
             "cholesky_factor": np.stack(self._chol),  # raw factors: bit-exact round trip
@@ -261,5 +358,13 @@ class IncrementalSSGP(SSGP):
         obj._install(Standardizer.from_arrays(data), hyp, np.asarray(data["base_frequencies"]),
                      lin if lin.size else None)
         chol = [np.asfortranarray(R) for R in np.asarray(data["cholesky_factor"], dtype=float)]
-        obj._set_state(chol, np.asarray(data["b"], dtype=float), int(data["n_samples_seen"]))
+        n_seen = int(data["n_samples_seen"])
+        obj._set_state(chol, np.asarray(data["b"], dtype=float), n_seen,
+                       n_state=int(data.get("n_state_samples", n_seen)))
+        detector = np.asarray(data.get("change_detector", np.zeros(0)), dtype=float)
+        if detector.size:
+            ratio, patience, history = detector
+            obj.change_detector = ChangeDetector(float(ratio), int(patience), int(history))
+        obj._reset_detector()
+        obj.n_changes_ = int(data.get("n_changes", 0))
         return obj

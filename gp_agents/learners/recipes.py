@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from .change import ChangeDetector
 from .hyperparameters import HyperparameterBounds
 from .incremental import IncrementalSSGP
 
@@ -9,8 +10,8 @@ __all__ = ["online_ssgp"]
 
 
 def online_ssgp(n_frequencies: int = 50, forgetting_factor: float = 0.995,
-                random_state: int | None = 0, linear_features: bool = False
-                ) -> IncrementalSSGP:
+                random_state: int | None = 0, linear_features: bool = False,
+                change_detector: ChangeDetector | None = None) -> IncrementalSSGP:
     """The online learner of the paper's Algorithm 1, as this project's benchmarks use it.
 
     An :class:`~gp_agents.learners.IncrementalSSGP` whose hyperparameters come from the SSGP's
@@ -27,8 +28,10 @@ def online_ssgp(n_frequencies: int = 50, forgetting_factor: float = 0.995,
         linear_features: append linear features of the inputs (:class:`~gp_agents.learners.
             SSGP`); with the MPC's ``sensitivities=True`` inputs they are the residual's
             explicit parametric part (:mod:`gp_agents.residual`).
+        change_detector: restart from the new regime's samples when the system changes
+            (:class:`~gp_agents.learners.ChangeDetector`).
     """
     return IncrementalSSGP(n_frequencies, forgetting_factor=forgetting_factor,
                            hyperparameters="ssgp", random_state=random_state,
-                           linear_features=linear_features,
+                           linear_features=linear_features, change_detector=change_detector,
                            bounds=HyperparameterBounds(length_scale=(1.0, 100.0)))
