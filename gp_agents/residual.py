@@ -31,7 +31,10 @@ a handful of weights per output that the data identify within a few samples and 
 extrapolates with the physics, and its Fourier features model the rest (second-order terms and
 effects outside the model's structure). ``tests/test_mpc.py`` fits ``S dp`` to the cart pole's
 true residual by least squares. The nominal model's structure is what the controller knows
-already; only its values are wrong. Off by default: no committed benchmark has measured it yet.
+already; only its values are wrong. Measured by the ``robustness`` preset (recipes
+``ssgp-mpc-sensitivities``, ``ssgp-mpc-adaptive`` and their linearized forms; README, *Online
+learning across the envelope*). Off by default: the fixed-truth tables (``quick``,
+``mpc-acceptance``, the paper's) were measured without it and have not been re-run with it.
 """
 
 from __future__ import annotations
