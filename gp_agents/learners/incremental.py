@@ -214,7 +214,8 @@ class IncrementalSSGP(SSGP):
         """Add ``p`` samples ``Z`` (p, d_in), ``Y`` (p, d_out) in order (the last is newest).
 
         Costs ``O(p r^2)`` per output. On any error the previous state is left untouched.
-        With a change detector the samples go in one at a time (module docstring).
+        With a change detector the samples go in one at a time (module docstring), and an
+        error leaves those before the failing sample added.
         Returns ``self``.
         """
         self._check_fitted()
