@@ -54,7 +54,8 @@ METRIC_COLUMNS = (
     "success", "success_held", "at_goal_final", "time_to_success_s", "cost", "final_distance",
     "final_position_error", "recovery_s", "violations", "termination", "steps", "data_steps",
     "act_median_ms", "act_p95_ms", "act_max_ms", "solver_failures", "fallbacks", "solves",
-    "capped_solves", "plan_plant_defect", "build_s", "episode_s", "max_steps", "message",
+    "capped_solves", "learner_changes", "plan_plant_defect", "build_s", "episode_s", "max_steps",
+    "message",
 )
 TIME_COLUMNS = ("act_median_ms", "act_p95_ms", "act_max_ms", "build_s", "episode_s")
 """The columns of ``metrics.csv`` that are wall-clock times: the only ones a run's machine load

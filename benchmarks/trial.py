@@ -244,6 +244,9 @@ def run_episode(spec: TrialSpec) -> dict[str, Any]:
         "plan_plant_defect": _plan_plant_defect(env, agent) if episodic else float("nan"),
         "fallbacks": int(getattr(agent, "n_fallbacks", 0)) if is_mpc else float("nan"),
         "solves": int(getattr(agent, "n_solves", 0)) if is_mpc else float("nan"),
+        # changes the learner's ChangeDetector declared (adaptive recipes; NaN without one)
+        "learner_changes": (int(agent.learner.n_changes_) if is_mpc and getattr(
+            getattr(agent, "learner", None), "detector_", None) is not None else float("nan")),
         "build_s": build_s,
         "episode_s": episode_s,
         **{f"recipe_{k}": v for k, v in built.info.items()},

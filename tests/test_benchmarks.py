@@ -134,6 +134,20 @@ def test_metrics_are_deterministic_for_a_tiny_learning_run() -> None:
     assert a["metrics"]["data_steps"] == 45 and a["metrics"]["initial_data_steps"] == 40
 
 
+def test_change_detector_changes_are_recorded() -> None:
+    """The payload (+20% mass at 3 s = step 60) is a change the adaptive recipe's detector
+    declares within a few steps; the episode records how many; a recipe without a detector
+    records NaN."""
+    before, after = (execute(TrialSpec("episode", "quadrotor", "online-payload",
+                                       "ssgp-mpc-linearized-adaptive", 200, max_steps=n))
+                     for n in (58, 70))
+    assert before["status"] == after["status"] == "ok", after["message"]
+    assert after["metrics"]["learner_changes"] == before["metrics"]["learner_changes"] + 1
+    plain = execute(TrialSpec("episode", "quadrotor", "online-payload", "ssgp-mpc-linearized",
+                              200, max_steps=2))
+    assert np.isnan(plain["metrics"]["learner_changes"])
+
+
 def test_missing_rl_model_is_recorded_as_not_available(tmp_path: Path) -> None:
     spec = TrialSpec("episode", "quadrotor", "gp", "sac", 0, max_steps=2)
     summary = run_trials([spec], tmp_path, workers=0, progress=False)
