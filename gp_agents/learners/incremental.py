@@ -52,7 +52,7 @@ import os
 from pathlib import Path
 
 import numpy as np
-from scipy.linalg import cholesky, solve_triangular
+from scipy.linalg import cholesky
 
 from ._validation import check_training_data
 from .change import ChangeDetector
@@ -174,14 +174,10 @@ class IncrementalSSGP(SSGP):
         lam, _ = self._check_config()
         Zs, Ys = std.transform_inputs(Z), std.transform_outputs(Y)
         weight = lam ** np.arange(len(Z) - 1, -1, -1, dtype=float)
-        mean = self._predict_std(Zs, return_var=False)[0]
-        out = np.empty_like(Ys)
-        for j in range(self.n_outputs_):
-            V = solve_triangular(self._chol[j], self._features(Zs, j).T, trans="T",
-                                 check_finite=False)
-            h = weight * np.einsum("ij,ij->j", V, V)
-            out[:, j] = (Ys[:, j] - mean[:, j]) / np.maximum(1.0 - h, 1e-12)
-        return out
+        mean, var = self._predict_std(Zs, return_var=True)  # var = sn^2 (1 + phi^T A^-1 phi)
+        noise = self.hyperparameters_.noise_std[None, :] ** 2
+        h = weight[:, None] * (var / noise - 1.0)
+        return (Ys - mean) / np.maximum(1.0 - h, 1e-12)
 
     def _reset_detector(self) -> None:
         self.n_changes_ = 0
