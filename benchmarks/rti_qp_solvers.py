@@ -25,8 +25,12 @@ import numpy as np
 import gp_envs
 from gp_agents import PseudospectralMPC
 from gp_agents.agent import rollout_lockstep
+from gp_agents.mpc.rti import ACTIVE_SET_PREFIX, resolve_qp_solver
 
-SOLVERS = ("osqp", "proxqp", "qrqp", "piqp", "qpoases")
+SOLVERS = ("osqp", "proxqp", "qrqp", "piqp", "qpoases", "active-set:proxqp", "active-set:piqp",
+           "active-set:qrqp")
+"""CasADi conic plugins, and the active-set solve from the shifted plan's active set with one of
+them as its fallback (:class:`gp_agents.mpc.active_set.ActiveSetQP`)."""
 SCENARIOS = {"cartpole": "gp", "quadrotor": "gp", "dubins": "paper"}
 """Scenario per system (the peers' cart-pole scenario; others: the system's default)."""
 TUNING_SEEDS = (100, 101, 102)
@@ -51,17 +55,23 @@ def main(argv: list[str] | None = None) -> None:
     except ValueError:
         parser.error(f"--seeds must be comma-separated integers, got {args.seeds!r}")
     solvers = [s for s in args.solvers.split(",") if s]
-    missing = [s for s in solvers if not __import__("casadi").has_conic(s)]
+    missing = []
+    for s in solvers:
+        try:
+            resolve_qp_solver(s)
+        except ValueError:
+            missing.append(s)
     if missing or not solvers:
-        parser.error(f"QP solver plugin(s) not available in this CasADi: {missing}")
+        parser.error(f"QP solver(s) not available in this CasADi: {missing}")
     print(f"Seeds {', '.join(map(str, seeds))}; cost: mean over the seeds; steps pooled.\n")
-    print("| env | QP solver | cost | rejected / RTI steps | median RTI step (ms) | "
+    print("| env | QP solver | cost | rejected / RTI steps | QP fallbacks | median RTI step (ms) | "
           "p90 replanning act (ms) |")
-    print("|---|---|---:|---:|---:|---:|")
+    print("|---|---|---:|---:|---:|---:|---:|")
     for name in names:
         system = gp_envs.SYSTEMS[name]
         env_id, scenario = system.env_id, SCENARIOS.get(name, system.default_scenario)
-        rows = {qp: dict(cost=[], rejected=0, steps=0, rti=[], act=[]) for qp in solvers}
+        rows = {qp: dict(cost=[], rejected=0, steps=0, fallbacks=0, rti=[], act=[])
+                for qp in solvers}
         for seed in seeds:
             pairs = []
             for qp in solvers:
@@ -73,11 +83,14 @@ def main(argv: list[str] | None = None) -> None:
                 row["cost"].append(ep.cost)
                 row["rejected"] += agent.planner.n_rti_rejected
                 row["steps"] += agent.planner.n_rti_steps
+                row["fallbacks"] += agent.planner.n_qp_fallbacks
                 row["rti"].extend(d["solve_time"][d["status"] == "RTI"])
                 row["act"].extend(ep.act_times[1:])  # the first act builds the NLP
         for qp, row in rows.items():
             print(f"| {env_id} | {qp} | {np.mean(row['cost']):.3f} | "
-                  f"{row['rejected']} / {row['steps']} | {1e3 * np.median(row['rti']):.2f} | "
+                  f"{row['rejected']} / {row['steps']} | "
+                  f"{row['fallbacks'] if qp.startswith(ACTIVE_SET_PREFIX) else '-'} | "
+                  f"{1e3 * np.median(row['rti']):.2f} | "
                   f"{1e3 * np.quantile(row['act'], 0.9):.2f} |", flush=True)
 
 

@@ -66,14 +66,16 @@ class PlanningDefaults:
         n_nodes: Legendre-Gauss nodes per interval of the polynomial part of the horizon.
         n_intervals: intervals of the polynomial part (after the held control periods).
         nodes_per_period: LG nodes in each held control period of an episodic plan.
-        qp_solver: the real-time iteration's QP solver (CasADi ``conic`` plugin name).
+        qp_solver: the real-time iteration's QP solver: a CasADi ``conic`` plugin name, or
+            ``"active-set:<plugin>"`` (the RTI's active-set solve from the shifted plan, that
+            plugin as its fallback; ``gp_agents.mpc.rti.resolve_qp_solver``).
     """
 
     horizon: float
     n_nodes: int
     n_intervals: int = 1
     nodes_per_period: int = 3
-    qp_solver: str = "proxqp"
+    qp_solver: str = "active-set:proxqp"
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.horizon) and self.horizon > 0):

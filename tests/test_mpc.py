@@ -446,7 +446,7 @@ def test_a_kkt_point_is_a_fixed_point_of_the_rti_step():
     agent.act(obs)  # the cold start: a converged solve
     sol, planner = agent.plan.solution, agent.planner
     assert sol.success and sol.status == "Solve_Succeeded"
-    w, _, violation, _, _ = planner._qp_step(sol.nlp_x, planner.planning.param_values())
+    w, _, violation, *_ = planner._qp_step(sol.nlp_x, planner.planning.param_values())
     np.testing.assert_allclose(np.asarray(w).ravel(), sol.nlp_x, atol=1e-5)
     assert float(violation) < 1e-6
 

@@ -123,7 +123,7 @@ def test_one_registration_gives_env_mpc_defaults_data_and_benchmark_entry(user_s
     env = gym.make("user/PointMass-v0")
     assert env.spec.max_episode_steps == 40 and system_of(env) is user_system
     agent = PseudospectralMPC.from_env(env)
-    assert agent.schedule.horizon == pytest.approx(1.2) and agent.qp_solver == "proxqp"
+    assert agent.schedule.horizon == pytest.approx(1.2) and agent.qp_solver == "active-set:proxqp"
     data = collect_initial_data(env, 30, seed=0)
     assert data.X.shape == (30, 2)
     np.testing.assert_allclose(data.X[0], [-1.0, 0.0])  # the registered data start

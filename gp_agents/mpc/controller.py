@@ -27,6 +27,7 @@ import gymnasium as gym
 import numpy as np
 
 from gp_agents.data import Transitions
+from gp_agents.mpc.active_set import ActiveSetQP
 from gp_agents.mpc.diagnostics import StepRecord, records_to_arrays
 from gp_agents.mpc.gp_in_nlp import GPInNLP
 from gp_agents.mpc.gp_linearized import LinearizedGP
@@ -89,8 +90,10 @@ class PseudospectralMPC:
         scheme: ``"converged"`` (every plan solved to convergence) or ``"rti"`` (a converged
             solve at a cold start, then one Gauss-Newton SQP step per replan:
             :class:`~gp_agents.mpc.rti.RTIPlanner`).
-        qp_solver: the RTI step's QP solver (default per system, chosen by measurement:
-            :func:`~gp_agents.mpc.schedule.planning_defaults`).
+        qp_solver: the RTI step's QP solver: a CasADi conic plugin name,
+            ``"active-set:<plugin>"`` or an :class:`~gp_agents.mpc.active_set.ActiveSetQP`
+            (:class:`~gp_agents.mpc.rti.RTIPlanner`; default per system, chosen by
+            measurement: :func:`~gp_agents.mpc.schedule.planning_defaults`).
         warm_start_duals: a warm IPOPT solve also starts from the previous solve's multipliers
             with IPOPT's warm-start options (:class:`~gp_agents.mpc.planner.Planner`). None: off
             for ``"converged"``, on for the RTI's fallback solves. Measured (``rti`` preset,
@@ -112,7 +115,8 @@ class PseudospectralMPC:
                  state_margin: float = 0.05, state_penalty: float | None = 1e4,
                  obstacle_margin: float = 0.1, jit: bool = False,
                  scheme: Literal["converged", "rti"] = "converged",
-                 qp_solver: str | None = None, warm_start_duals: bool | None = None) -> None:
+                 qp_solver: str | ActiveSetQP | None = None,
+                 warm_start_duals: bool | None = None) -> None:
         if not isinstance(model, ControlModel):
             raise TypeError(f"model must be a gp_envs ControlModel, got {type(model).__name__}")
         defaults = planning_defaults(model)

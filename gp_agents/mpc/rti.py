@@ -43,13 +43,14 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+from gp_agents.mpc.active_set import ActiveSetQP
 from gp_agents.mpc.learned_term import LearnedTerm
 from gp_agents.mpc.ocp import Constraints, Mesh
 from gp_agents.mpc.planner import Plan, Planner
 from gp_agents.mpc.planning_model import PlanningModel
 from gp_agents.pseudospectral import BufferedFunction, OCPSolution
 
-__all__ = ["QP_SOLVER_OPTIONS", "RTIPlanner"]
+__all__ = ["ACTIVE_SET_PREFIX", "QP_SOLVER_OPTIONS", "RTIPlanner", "resolve_qp_solver"]
 
 QP_SOLVER_OPTIONS: dict[str, dict[str, Any]] = {
     "osqp": {"osqp": {"verbose": False, "eps_abs": 1e-6, "eps_rel": 1e-6,
@@ -64,37 +65,67 @@ QP_SOLVER_OPTIONS: dict[str, dict[str, Any]] = {
 """QP options per solver: tolerances tight enough that the step is the QP's solution (the
 iteration caps are counts, so the step is deterministic)."""
 
+ACTIVE_SET_PREFIX = "active-set:"
+"""A QP solver name ``"active-set:<plugin>"`` is :class:`~gp_agents.mpc.active_set.ActiveSetQP`
+from the shifted plan's active set, with the CasADi ``<plugin>`` as its fallback."""
+
+
+def resolve_qp_solver(qp_solver: str | ActiveSetQP,
+                      qp_options: Mapping[str, Any] | None = None) -> str | ActiveSetQP:
+    """A CasADi conic plugin name (checked), or the :class:`ActiveSetQP` a name
+    ``"active-set:<plugin>"`` (or an instance) stands for.
+
+    Raises:
+        ValueError: an unknown plugin.
+    """
+    if isinstance(qp_solver, ActiveSetQP):
+        return qp_solver
+    name = str(qp_solver)
+    if name.startswith(ACTIVE_SET_PREFIX):
+        fallback = name[len(ACTIVE_SET_PREFIX):]
+        options = QP_SOLVER_OPTIONS.get(fallback, {}) if qp_options is None else qp_options
+        return ActiveSetQP(fallback, options)
+    if not ca.has_conic(name):
+        raise ValueError(f"CasADi QP solver plugin {name!r} is not available (or name "
+                         f"{ACTIVE_SET_PREFIX}<plugin> for the active-set solve)")
+    return name
+
 
 class RTIPlanner(Planner):
     """A :class:`Planner` that takes one SQP step per period from the shifted previous plan.
 
     Args:
         planning, mesh, constraints: as for :class:`Planner`.
-        qp_solver: CasADi conic plugin for the step's QP (``"osqp"``, ``"qrqp"``, ``"piqp"``,
-            ...; chosen per system by measurement,
-            :func:`gp_agents.mpc.schedule.planning_defaults`).
-        qp_options: CasADi options of that plugin (default :data:`QP_SOLVER_OPTIONS`).
+        qp_solver: the step's QP solver: a CasADi conic plugin (``"osqp"``, ``"proxqp"``,
+            ``"piqp"``, ...), or ``"active-set:<plugin>"`` / an
+            :class:`~gp_agents.mpc.active_set.ActiveSetQP` (primal-dual active-set iterations
+            from the shifted plan's active set, that plugin as the fallback); chosen per
+            system by measurement, :func:`gp_agents.mpc.schedule.planning_defaults`.
+        qp_options: CasADi options of the plugin (default :data:`QP_SOLVER_OPTIONS`).
         max_violation: largest constraint violation of an accepted step (see module doc).
         **settings: the converged solver's settings (:class:`Planner`).
     """
 
     def __init__(self, planning: PlanningModel, mesh: Mesh, constraints: Constraints, *,
-                 qp_solver: str = "proxqp", qp_options: Mapping[str, Any] | None = None,
+                 qp_solver: str | ActiveSetQP = "proxqp",
+                 qp_options: Mapping[str, Any] | None = None,
                  max_violation: float = 1e-2, **settings: Any) -> None:
         settings.setdefault("warm_start_duals", True)
         super().__init__(planning, mesh, constraints, **settings)
-        if not ca.has_conic(qp_solver):
-            raise ValueError(f"CasADi QP solver plugin {qp_solver!r} is not available")
+        solver = resolve_qp_solver(qp_solver, qp_options)
         if not (np.isfinite(max_violation) and max_violation > 0):
             raise ValueError(f"max_violation must be > 0, got {max_violation}")
-        self.qp_solver, self.max_violation = qp_solver, float(max_violation)
-        options = dict(QP_SOLVER_OPTIONS.get(qp_solver, {}) if qp_options is None
-                       else qp_options)
-        options.setdefault("error_on_fail", False)
+        self.qp_solver, self.max_violation = solver, float(max_violation)
+        options: dict[str, Any] = {}
+        if isinstance(solver, str):
+            options = dict(QP_SOLVER_OPTIONS.get(solver, {}) if qp_options is None
+                           else qp_options)
+            options.setdefault("error_on_fail", False)
         self._shift, self._qp_step, step = self._build(options)
         self._step = BufferedFunction(step)
         self._learned_steps: dict[int, BufferedFunction] = {}
         self.n_rti_steps = self.n_rti_rejected = 0
+        self.n_qp_fallbacks = 0  # active-set QPs that did not settle (ActiveSetQP only)
 
     def _build(self, qp_options: dict[str, Any]) -> tuple[ca.Function, ca.Function, ca.Function]:
         ocp, model = self.ocp, self.planning.model
@@ -120,21 +151,32 @@ class RTIPlanner(Planner):
             ws = ws + 2 * np.pi * turns * ca.DM(mask)
         ws = ca.vertcat(x0, ca.fmin(ca.fmax(ws[n:], lbx[n:]), ubx[n:]))
         shift = ca.Function("rti_shift", [w_prev, x0], [ws], ["w_prev", "x0"], ["w"])
-        qp = ca.conic("rti_qp", self.qp_solver, {"h": H.sparsity(), "a": J.sparsity()},
-                      qp_options)
+        if isinstance(self.qp_solver, ActiveSetQP):
+            qp = self.qp_solver.function(H.sparsity(), J.sparsity())
+        else:
+            qp = ca.conic("rti_qp", self.qp_solver, {"h": H.sparsity(), "a": J.sparsity()},
+                          qp_options)
 
         # the Gauss-Newton QP step and what it gives
         w_s, p = ca.MX.sym("w_s", n_w), ca.MX.sym("p", P.numel())
         g0, J0, grad0, H0 = derivatives(w_s, p)
         lo, hi = ca.vertcat(w_s[:n], lbx[n:]), ca.vertcat(w_s[:n], ubx[n:])
-        res = qp(h=H0, g=grad0, a=J0, lba=lbg - g0, uba=ubg - g0, lbx=lo - w_s, ubx=hi - w_s,
-                 x0=ca.DM.zeros(n_w))
+        data = dict(h=H0, g=grad0, a=J0, lba=lbg - g0, uba=ubg - g0, lbx=lo - w_s, ubx=hi - w_s)
+        if isinstance(self.qp_solver, ActiveSetQP):
+            # the guess: the bounds the shifted plan sits at, the rows its constraints sit at
+            tol = self.qp_solver.tol
+            res = qp(**data, guess_x=(data["ubx"] <= tol) - (data["lbx"] >= -tol),
+                     guess_a=(data["uba"] <= tol) - (data["lba"] >= -tol))
+            qp_iterations = res["iterations"]
+        else:
+            res = qp(**data, x0=ca.DM.zeros(n_w))
+            qp_iterations = ca.MX(-1)
         w_new = w_s + res["x"]
         g_new = constraints(w_new, p)
         violation = ca.mmax(ca.vertcat(ca.fmax(lbg - g_new, 0), ca.fmax(g_new - ubg, 0)))
         action = w_new[ocp.control_decision(ocp.decision_of_node(0))]
-        outputs = [w_new, action, violation, res["lam_a"], res["lam_x"]]
-        names = ["w", "u", "violation", "lam_g", "lam_x"]
+        outputs = [w_new, action, violation, res["lam_a"], res["lam_x"], qp_iterations]
+        names = ["w", "u", "violation", "lam_g", "lam_x", "qp_iterations"]
         qp_step = ca.Function("rti_qp_step", [w_s, p], outputs, ["w_s", "p"], names)
         step = ca.Function("rti_step", [w_prev, x0, p], qp_step(ws, p),
                            ["w_prev", "x0", "p"], names)
@@ -142,7 +184,8 @@ class RTIPlanner(Planner):
 
     def _learned_step(self, n_theta: int) -> BufferedFunction:
         """The warm step with a node-parameter term (built once per learner size ``n_theta``):
-        ``(w_prev, x0, p, theta) -> (w, u, violation, lam_g, lam_x, linearization_error)``.
+        ``(w_prev, x0, p, theta) -> (w, u, violation, lam_g, lam_x, qp_iterations,
+        linearization_error)``.
         Inside: the shift, the term's expansion at the shifted plan's nodes from the
         learner's parameters theta, the QP step, and the expansion's error at the new plan."""
         step = self._learned_steps.get(n_theta)
@@ -166,7 +209,8 @@ class RTIPlanner(Planner):
         error = term.plan_error_expr(*nodes(out[0]), Q, theta)
         step = ca.Function("rti_learned_step", [w_prev, x0, p, theta], [*out, error],
                            ["w_prev", "x0", "p", "theta"],
-                           ["w", "u", "violation", "lam_g", "lam_x", "linearization_error"])
+                           ["w", "u", "violation", "lam_g", "lam_x", "qp_iterations",
+                            "linearization_error"])
         self._learned_steps[n_theta] = BufferedFunction(step)
         return self._learned_steps[n_theta]
 
@@ -188,11 +232,12 @@ class RTIPlanner(Planner):
             if term.n_node_params():
                 theta = term.expansion_param_values()
                 out = self._learned_step(theta.size)(w_prev, x, p, theta)
-                error = float(out[5][0])
+                error = float(out[6][0])
             else:
                 out = self._step(w_prev, x, p)
-            w_new, _, violation, lam_g, lam_x = out[:5]
+            w_new, _, violation, lam_g, lam_x, qp_iterations = out[:6]
             violation = float(violation[0])
+            self.n_qp_fallbacks += int(qp_iterations[0] == 0)
         except RuntimeError:  # the QP plugin raised (e.g. osqp's "Problem in osqp_update_P_A")
             w_new, violation = np.full(self.ocp.n_variables, np.nan), np.inf
             lam_g = lam_x = w_new

@@ -20,13 +20,16 @@ def planning_defaults(model: ControlModel) -> PlanningDefaults | None:
     None for a model of an unregistered system (then the horizon must be given).
 
     The QP solver defaults were chosen by measurement on tuning seeds 100-102
-    (``python -m benchmarks.rti_qp_solvers``, ``benchmarks/results/rti_qp_solvers.md``): proxqp
-    has the shortest median RTI step and 90th percentile on the cart pole and quadrotor; on the
-    Dubins vehicle it is fast on easy QPs but slow or failing on the hard ones near the
-    obstacle (whose soft margin makes the objective's Hessian indefinite there), where piqp's
-    90th percentile of the step is 3.5x shorter at the same number of rejected steps (other
-    systems: their registration). hpipm cannot take the pseudospectral NLP's structure (one
-    dense LG interval is no stage-wise OCP); daqp needs a positive definite Hessian.
+    (``python -m benchmarks.rti_qp_solvers``, ``benchmarks/results/rti_qp_solvers.md``): the
+    active-set solve from the shifted plan's active set
+    (:class:`~gp_agents.mpc.active_set.ActiveSetQP`) halves the median RTI step or better on
+    every system at the same closed-loop costs, and has the shortest 90th percentile on the
+    cart pole and the quadrotor. Its fallback plugin: proxqp (cart pole, quadrotor), piqp on
+    the Dubins vehicle, whose soft obstacle margin makes the Hessian indefinite near the
+    obstacle, where proxqp is slow or fails and piqp's 90th percentile of the step is the
+    shortest (other systems: their registration). hpipm cannot take the
+    pseudospectral NLP's structure (one dense LG interval is no stage-wise OCP); daqp needs a
+    positive definite Hessian.
     """
     name = model.name
     return SYSTEMS[name].planning if name in SYSTEMS else None
