@@ -14,7 +14,9 @@ costs are sums of squares of functions that are linear between kinks, so ``H`` i
 semidefinite and the QP convex; the one exception is the soft obstacle margin,
 ``(O_r + B_r + margin - |p - c|)^2`` while the plan is inside it, whose Hessian has a negative
 part from the curvature of ``|p - c|``: there the QP is nonconvex, which is why the Dubins
-vehicle's QP solver is the interior-point piqp, robust on those steps). The whole warm
+vehicle's QP fallback is the interior-point piqp, robust on those steps). The QP is solved
+by :class:`~gp_agents.mpc.active_set.ActiveSetQP` from the shifted plan's active set (or by
+a CasADi conic plugin alone, ``qp_solver``). The whole warm
 step (shift, angle alignment, fixing X(t0), the QP, the action) is one compiled CasADi
 function; Python passes the state and the learned term's numbers in, and gets the plan out.
 
