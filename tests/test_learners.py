@@ -9,7 +9,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 import pytest
-from scipy.linalg import cholesky
+from scipy.linalg import cholesky, solve_triangular
 
 from gp_agents.learners import (
     SSGP,
@@ -19,7 +19,7 @@ from gp_agents.learners import (
     IncrementalSSGP,
     NotFittedError,
 )
-from gp_agents.learners.cholesky_update import cholesky_add_rows, positive_diagonal
+from gp_agents.learners.cholesky_update import cholesky_add_rows, positive_diagonal, solve_upper
 from gp_agents.learners.exact_gp import exact_gp_nlml
 from gp_agents.learners.ssgp import ssgp_nlml
 
@@ -213,6 +213,21 @@ def test_cholesky_add_rows():
     assert np.all(np.tril(R, -1) == 0)
     R = positive_diagonal(R)
     np.testing.assert_allclose(R, cholesky(0.9 * A + B.T @ B), rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("order", ["F", "C"])
+def test_solve_upper_is_scipys_triangular_solve_to_the_bit(order):
+    rng = np.random.default_rng(1)
+    X = rng.standard_normal((60, 20))
+    R = np.array(cholesky(X.T @ X + np.eye(20)), order=order)
+    for b in (rng.standard_normal(20), rng.standard_normal((20, 3))):
+        for transpose in (False, True):
+            expected = solve_triangular(R, b, trans="T" if transpose else "N",
+                                        check_finite=False)
+            assert np.array_equal(solve_upper(R, b, transpose=transpose), expected)
+    np.testing.assert_allclose(R @ solve_upper(R, b), b, rtol=1e-10, atol=1e-10)
+    with pytest.raises(np.linalg.LinAlgError):
+        solve_upper(np.zeros((3, 3)), np.ones(3))
 
 
 def _simulated_prior_ages(n: int, D: int, m: int) -> np.ndarray:

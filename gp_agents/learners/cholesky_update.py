@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import lapack
 
-__all__ = ["cholesky_add_rows", "positive_diagonal"]
+__all__ = ["cholesky_add_rows", "positive_diagonal", "solve_upper"]
 
 _BLOCK = 8  # dtpqrt block size; 8 measured fastest for n in [50, 800]
 
@@ -53,3 +53,21 @@ def positive_diagonal(R: np.ndarray) -> np.ndarray:
     """Copy of the upper factor ``R`` with rows negated so that its diagonal is >= 0."""
     sign = np.where(np.diag(R) < 0, -1.0, 1.0)
     return R * sign[:, None]
+
+
+def solve_upper(R: np.ndarray, b: np.ndarray, transpose: bool = False) -> np.ndarray:
+    """``R^{-1} b`` (or ``R^{-T} b``) for an (n, n) upper-triangular ``R`` and (n,) or (n, k)
+    ``b``: LAPACK ``dtrtrs`` called as ``scipy.linalg.solve_triangular`` calls it (so the
+    result is the same to the bit), without its argument checks, which cost more than the
+    solve at the sizes of a per-period update (``2r`` of 50-200).
+
+    Raises:
+        numpy.linalg.LinAlgError: a zero on the diagonal.
+    """
+    if R.flags.f_contiguous:
+        x, info = lapack.dtrtrs(R, b, lower=0, trans=int(transpose))
+    else:  # the transposed system, as trtrs expects Fortran order
+        x, info = lapack.dtrtrs(R.T, b, lower=1, trans=int(not transpose))
+    if info != 0:
+        raise np.linalg.LinAlgError(f"triangular solve failed (dtrtrs info={info})")
+    return x

@@ -39,7 +39,7 @@ from ._optimize import minimize_multistart
 from ._validation import NotFittedError, check_training_data
 from .base import BaseGPLearner
 from .casadi_export import sym_fourier_features
-from .cholesky_update import positive_diagonal
+from .cholesky_update import positive_diagonal, solve_upper
 from .exact_gp import ExactGP
 from .features import (
     draw_base_frequencies,
@@ -308,15 +308,8 @@ class SSGP(BaseGPLearner):
         self._check_fitted()
         if self._weights_cache is None:
             self._weights_cache = np.stack(
-                [
-                    solve_triangular(
-                        R,
-                        solve_triangular(R, bj, trans="T", check_finite=False),
-                        check_finite=False,
-                    )
-                    for R, bj in zip(self._chol, self.b_, strict=True)
-                ]
-            )
+                [solve_upper(R, solve_upper(R, bj, transpose=True))
+                 for R, bj in zip(self._chol, self.b_, strict=True)])
         return self._weights_cache
 
     def _rinv(self) -> list[np.ndarray]:
