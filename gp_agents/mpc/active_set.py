@@ -16,21 +16,24 @@ starting from the right set needs one linear solve. :class:`ActiveSetQP` does th
 
    with ``F`` the free variables' diagonal mask, ``A_x = I - F``, ``S`` the active rows',
    ``c`` the fixed variables' bound values and ``b`` the active rows' bounds, is symmetric and
-   quasi-definite, solved by CasADi's sparse LDL' (``eps`` a tiny regularization that makes the
-   factorization exist for a merely semidefinite Hessian). ``dw = F z + c``; the bounds'
-   multipliers follow from stationarity.
+   quasi-definite. It is equilibrated (rows and columns scaled to unit 2-norm rows), given a
+   tiny regularization ``eps`` (in the scaled units; it makes CasADi's sparse LDL', which
+   does not pivot, exist for a merely semidefinite Hessian) and solved; when the residual
+   against the unregularized system is above ``residual_tol``, one step of iterative
+   refinement follows, and a residual still above it ends the iterations (step 4).
+   ``dw = F z + c``; the bounds' multipliers follow from stationarity.
 3. The next set, by the primal-dual rule: a free variable (row) beyond a bound becomes active
    at it, an active one whose multiplier has the wrong sign is released. An unchanged set is
    a KKT point of the QP within the tolerances (free variables and inactive rows inside their
    bounds, active ones with multipliers of the right sign, stationarity exact to the linear
    solve): the step is accepted.
-4. After ``max_iter`` linear solves without that, or at a solve whose residual stays above
+4. After ``max_iter`` iterations without that, or at a solve whose residual stays above
    ``residual_tol`` (a singular matrix from a dependent active set, non-finite data), the QP
    goes to the conic ``fallback`` plugin instead, from scratch.
 
 All of it is one CasADi expression (a chain of ``Function.if_else`` switches, so only the
 iterations that are needed run), so it compiles into the RTI's one-call warm step. The
-iteration count is fixed, never a time limit: the result is a function of the inputs only.
+iterations are capped by count, never by time: the result is a function of the inputs only.
 """
 
 from __future__ import annotations
@@ -52,9 +55,11 @@ class ActiveSetQP:
     Args:
         fallback: the CasADi conic plugin used when the iterations do not settle.
         fallback_options: its CasADi options.
-        max_iter: active-set iterations (linear solves) before the fallback, >= 1.
+        max_iter: active-set iterations before the fallback, >= 1.
         tol: primal tolerance of a bound or row (in the variables' and rows' units) and dual
             tolerance of a multiplier's sign.
+        residual_tol: largest residual (infinity norm, equilibrated units) of an accepted
+            linear solve.
         regularization: ``eps`` of the KKT matrix (module docstring), > 0.
     """
 
@@ -84,7 +89,7 @@ class ActiveSetQP:
         iterations)``. ``guess_x`` (n,) and ``guess_a`` (m,) hold -1 (at the lower bound),
         +1 (upper) or 0 (inactive) per variable and row; equal bounds are always active.
         ``lam_*`` follow CasADi's sign convention (negative at a lower bound);
-        ``iterations`` counts the linear solves, or is 0 when the fallback solved the QP (or
+        ``iterations`` counts the active-set iterations, or is 0 when the fallback solved the QP (or
         the data were not finite: then every output but ``iterations`` is NaN)."""
         n, m = h.size1(), a.size1()
         data = [ca.MX.sym("h", h), ca.MX.sym("g", n), ca.MX.sym("a", a), ca.MX.sym("lba", m),
@@ -162,7 +167,7 @@ class ActiveSetQP:
         rhs = ca.vertcat(-ca.mtimes(F, q + ca.mtimes(H, c)), ca.mtimes(S, b - ca.mtimes(A, c)))
         # symmetric equilibration (unit 2-norm rows) and a tiny quasi-definite regularization
         # for the LDL' without pivoting; one step of iterative refinement against the
-        # unregularized matrix when the first solve's residual is above ``tol``
+        # unregularized matrix when the first solve's residual is above ``residual_tol``
         d = 1 / ca.sqrt(ca.sum2(K * K))
         Ks, rs = ca.mtimes([ca.diag(d), K, ca.diag(d)]), d * rhs
         y = ca.solve(Ks + self._regularization(n, m), rs, "ldl")
