@@ -103,6 +103,16 @@ PLANS: dict[str, Plan] = {
     "pilot_shift_time": Plan(**_PILOT, reward="bounded-shift", time_feature=True,
                              root=PILOTS / "shift_time",
                              description="pilot: bounded shift + time feature"),
+    # the sweep's first variant (learning-curve seeds only; algorithm seed 100, disjoint from
+    # the plans' seeds 0-4): cartpole_online_sac's settings plus the declared shaping term
+    # GoalBonusReward at 10 per s inside the goal tolerance (0.5 per step; the task's cost rate
+    # is ~20 per s hanging and 0.02 per s parked 0.1 m off centre, so the bonus is what tells
+    # the policy where the tolerance is)
+    "sweep_cartpole_goal_bonus": Plan(
+        env="cartpole", scenario="online", algo="sac", hyperparams="sac-swingup",
+        steps=300_000, seeds=(100,), reward="bounded-shift", time_feature=True, goal_bonus=10.0,
+        root=PILOTS / "goal_bonus", seed_dirs=False,
+        description="sweep: bounded shift + time feature + goal bonus 10/s"),
     # the cart-pole SAC baseline: rl-zoo3's InvertedPendulumSwingupBulletEnv-v0 SAC settings
     # and step budget (3e5), 5 seeds; bounded shift + time feature (the pilot showed no harm
     # at 5e4 steps; the shift ranks policies exactly as the task's reward does, and the zoo's
