@@ -30,7 +30,8 @@ whose learner also restarts when it detects that the system changed
 (:class:`gp_agents.learners.ChangeDetector`).
 
 Real-time-iteration variants (:data:`RTI_VARIANTS`, preset ``rti``): ``nominal-mpc-rti``,
-``oracle-mpc-rti``, ``ssgp-mpc-rti`` (``scheme="rti"``; the SSGP one with the GP linearized);
+``oracle-mpc-rti``, ``ssgp-mpc-rti`` (``scheme="rti"``; the SSGP one with the GP linearized),
+``ssgp-mpc-rti-zero-order`` (the GP's value frozen per node, adjoint-corrected);
 and their converged references warm-started with the previous multipliers
 (:data:`WARM_DUAL_VARIANTS`): ``nominal-mpc-warm-duals``, ``oracle-mpc-warm-duals``.
 
@@ -223,6 +224,12 @@ RTI_VARIANTS: dict[str, ControllerRecipe] = dict([
          "linearized per node at the shifted plan (learned_dynamics='linearized')",
          learner="ssgp", learned_dynamics="linearized"),
 ])
+RTI_VARIANTS["ssgp-mpc-rti-zero-order"] = ControllerRecipe(
+    "ssgp-mpc-rti-zero-order", "SSGP MPC, RTI zero-order", "mpc",
+    "ssgp-mpc-rti with the GP's value frozen per node (learned_dynamics='zero-order': the "
+    "nominal QP structure, the gradient corrected with the previous multipliers)",
+    learner="ssgp", learn_online=True,
+    settings=(("scheme", "rti"), ("learned_dynamics", "zero-order")))
 """Real-time-iteration variants (issue: RTI), compared by the ``rti`` preset."""
 
 WARM_DUAL_VARIANTS: dict[str, ControllerRecipe] = {

@@ -446,9 +446,61 @@ def test_a_kkt_point_is_a_fixed_point_of_the_rti_step():
     agent.act(obs)  # the cold start: a converged solve
     sol, planner = agent.plan.solution, agent.planner
     assert sol.success and sol.status == "Solve_Succeeded"
-    w, _, violation, *_ = planner._qp_step(sol.nlp_x, planner.planning.param_values())
+    w, _, violation, *_ = planner._qp_step(sol.nlp_x, planner.planning.param_values(),
+                                           np.zeros(sol.nlp_x.size))
     np.testing.assert_allclose(np.asarray(w).ravel(), sol.nlp_x, atol=1e-5)
     assert float(violation) < 1e-6
+
+
+@pytest.mark.parametrize("term", ["linearized", "zero-order"])
+def test_the_exact_ocps_kkt_point_is_a_fixed_point_of_the_learned_rti_step(term):
+    """From the plan of the GP inside the NLP solved by IPOPT and its multipliers, one
+    Gauss-Newton SQP step (``RTIPlanner.iterate``, no time shift) with the GP linearized per
+    node, or frozen per node with the adjoint-corrected gradient, does not move: the same
+    OCP's KKT point. The frozen values without the correction (zero multipliers) move away.
+    (Repeating the step is no test of convergence: Gauss-Newton SQP on the swing-up drifts
+    away from this KKT point within ~30 steps with either term, from 1e-6 of it.)"""
+    env = gym.make(CART, scenario="online")
+    data = collect_initial_data(env, 200, seed=0)
+    obs, _ = env.reset(seed=0)
+    exact = PseudospectralMPC.from_env(env, online_ssgp(20)).pretrain(data)
+    exact.act(obs)
+    sol = exact.plan.solution
+    assert sol.success
+    agent = PseudospectralMPC.from_env(env, exact.learner, learned_dynamics=term,
+                                       scheme="rti")
+    planner = agent._planner()
+    w, lam, violation = planner.iterate(obs, sol.nlp_x, sol.nlp_lam_g)
+    np.testing.assert_allclose(w, sol.nlp_x, atol=1e-5)
+    np.testing.assert_allclose(lam, sol.nlp_lam_g, atol=1e-4 * np.max(np.abs(sol.nlp_lam_g)))
+    assert violation < 1e-6
+    if term == "zero-order":
+        w0, _, _ = planner.iterate(obs, sol.nlp_x, np.zeros(sol.nlp_lam_g.size))
+        assert np.max(np.abs(w0 - sol.nlp_x)) > 1e-2
+
+
+def test_zero_order_rti_keeps_the_nominal_qp_structure_and_swings_up():
+    """The frozen GP value adds no constraint-Jacobian entries to the RTI's QP (the linearized
+    one adds a block per node), and its closed loop on the cart pole ``gp`` scenario is the
+    linearized RTI's."""
+    env = gym.make(CART, scenario="gp")
+    data = collect_initial_data(env, 100, seed=0)
+    plans = {}
+    for term in ("none", "linearized", "zero-order"):
+        learner = None if term == "none" else online_ssgp(20)
+        agent = PseudospectralMPC.from_env(env, learner, scheme="rti",
+                                           **({} if learner is None else
+                                              {"learned_dynamics": term}))
+        if learner is not None:
+            agent.pretrain(data)
+        ep = rollout(env, agent, 0)
+        nnz = ca.jacobian(agent.planner.ocp.nlp["g"], agent.planner.ocp.nlp["x"]).nnz()
+        plans[term] = (ep, nnz, agent)
+    assert plans["zero-order"][1] == plans["none"][1] < plans["linearized"][1]
+    (lin, _, _), (zo, _, zo_agent) = plans["linearized"], plans["zero-order"]
+    assert lin.success and zo.success
+    assert zo.cost == pytest.approx(lin.cost, rel=0.01)
+    assert zo_agent.planner.n_rti_steps > 100
 
 
 def test_rti_tracks_the_converged_mpc_and_its_safety_net_falls_back_to_it():
@@ -503,7 +555,8 @@ def test_the_rti_steps_compiled_expansion_is_the_numeric_one(kappa):
             plan, record = planner.plan(obs, previous, agent._step)
             if record["status"] == "RTI":
                 accepted += 1
-                w_ref = np.asarray(planner._qp_step(ws, np.concatenate([p, q.ravel()]))[0])
+                w_ref = np.asarray(planner._qp_step(ws, np.concatenate([p, q.ravel()]),
+                                                    np.zeros(ws.size))[0])
                 np.testing.assert_allclose(plan.solution.nlp_x, w_ref.ravel(), rtol=1e-9,
                                            atol=1e-9)
                 assert record["linearization_error"] == pytest.approx(

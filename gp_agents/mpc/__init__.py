@@ -11,6 +11,7 @@
 ``learned_term``        the strategy interface, :class:`NoLearnedTerm`
 ``gp_in_nlp``           :class:`GPInNLP`: the GP's mean inside the NLP (the paper's OCP)
 ``gp_linearized``       :class:`LinearizedGP`: the GP linearized per node (real-time iteration)
+``gp_zero_order``       :class:`ZeroOrderGP`: the GP's value frozen per node, adjoint-corrected
 ``diagnostics``         :class:`StepRecord`
 ======================  ==================================================================
 """
@@ -20,6 +21,7 @@ from gp_agents.mpc.controller import LEARNED_TERMS, PseudospectralMPC
 from gp_agents.mpc.diagnostics import StepRecord
 from gp_agents.mpc.gp_in_nlp import MAX_LEARNED_MODEL_SIZE, GPInNLP
 from gp_agents.mpc.gp_linearized import COLD_START_LINEARIZATIONS, LinearizedGP
+from gp_agents.mpc.gp_zero_order import ZeroOrderGP
 from gp_agents.mpc.learned_term import LearnedTerm, NoLearnedTerm
 from gp_agents.mpc.ocp import Constraints, Mesh, build_ocp
 from gp_agents.mpc.planner import CAPPED_STATUSES, Plan, Planner
@@ -44,6 +46,7 @@ __all__ = [
     "PseudospectralMPC",
     "RecedingHorizon",
     "StepRecord",
+    "ZeroOrderGP",
     "build_ocp",
     "online_ssgp",
     "planning_defaults",

@@ -31,6 +31,7 @@ from gp_agents.mpc.active_set import ActiveSetQP
 from gp_agents.mpc.diagnostics import StepRecord, records_to_arrays
 from gp_agents.mpc.gp_in_nlp import GPInNLP
 from gp_agents.mpc.gp_linearized import LinearizedGP
+from gp_agents.mpc.gp_zero_order import ZeroOrderGP
 from gp_agents.mpc.learned_term import LearnedTerm, NoLearnedTerm
 from gp_agents.mpc.ocp import Constraints
 from gp_agents.mpc.planner import Plan, Planner
@@ -40,8 +41,10 @@ from gp_agents.mpc.schedule import Episodic, RecedingHorizon, planning_defaults
 from gp_agents.residual import ResidualModel
 from gp_envs.model import ControlModel
 
-LEARNED_TERMS: dict[str, type[LearnedTerm]] = {"exact": GPInNLP, "linearized": LinearizedGP}
-"""``learned_dynamics`` names: the GP inside the NLP (the paper's OCP), or linearized per node."""
+LEARNED_TERMS: dict[str, type[LearnedTerm]] = {"exact": GPInNLP, "linearized": LinearizedGP,
+                                               "zero-order": ZeroOrderGP}
+"""``learned_dynamics`` names: the GP inside the NLP (the paper's OCP), linearized per node, or
+its value frozen per node (with the RTI's adjoint correction)."""
 
 
 class EnvNominalModel:
@@ -82,7 +85,10 @@ class PseudospectralMPC:
         uncertainty_radius: ``kappa`` >= 0 of the obstacle constraint (:mod:`~gp_agents.mpc.
             ocp`); 0 reproduces the paper's run.
         learned_dynamics: how the learner enters the NLP: ``"exact"`` (:class:`GPInNLP`),
-            ``"linearized"`` (:class:`LinearizedGP`), or a configured term instance (e.g.
+            ``"linearized"`` (:class:`LinearizedGP`), ``"zero-order"`` (:class:`ZeroOrderGP`:
+            the value frozen per node, the nominal QP structure; meant for ``scheme="rti"``,
+            whose steps correct its gradient with the multipliers), or a configured term
+            instance (e.g.
             ``LinearizedGP(max_linearizations=3)``, ``GPInNLP(hessian="nominal")``; copied).
         solver, solver_options, jit: the NLP solver (:class:`~gp_agents.mpc.planner.Planner`).
         max_iterations: iteration cap of one solve; the only cap (no wall-clock limit).

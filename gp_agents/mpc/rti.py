@@ -125,7 +125,8 @@ class RTIPlanner(Planner):
             options.setdefault("error_on_fail", False)
         self._shift, self._qp_step, step = self._build(options)
         self._step = BufferedFunction(step)
-        self._learned_steps: dict[int, BufferedFunction] = {}
+        self._learned_steps: dict[tuple[int, bool], BufferedFunction] = {}
+        self._iterate: BufferedFunction | None = None
         self.n_rti_steps = self.n_rti_rejected = 0
         self.n_qp_fallbacks = 0  # active-set QPs that did not settle (ActiveSetQP only)
 
@@ -153,17 +154,23 @@ class RTIPlanner(Planner):
             ws = ws + 2 * np.pi * turns * ca.DM(mask)
         ws = ca.vertcat(x0, ca.fmin(ca.fmax(ws[n:], lbx[n:]), ubx[n:]))
         shift = ca.Function("rti_shift", [w_prev, x0], [ws], ["w_prev", "x0"], ["w"])
+        # no time shift (iterate): X(t0) the measured state, the rest clipped into the bounds
+        self._fix_x0 = ca.Function(
+            "rti_fix_x0", [w_prev, x0], [ca.vertcat(x0, ca.fmin(ca.fmax(w_prev[n:], lbx[n:]),
+                                                              ubx[n:]))], ["w_prev", "x0"], ["w"])
         if isinstance(self.qp_solver, ActiveSetQP):
             qp = self.qp_solver.function(H.sparsity(), J.sparsity())
         else:
             qp = ca.conic("rti_qp", self.qp_solver, {"h": H.sparsity(), "a": J.sparsity()},
                           qp_options)
 
-        # the Gauss-Newton QP step and what it gives
+        # the Gauss-Newton QP step and what it gives (grad_offset: an adjoint correction)
         w_s, p = ca.MX.sym("w_s", n_w), ca.MX.sym("p", P.numel())
+        grad_offset = ca.MX.sym("grad_offset", n_w)
         g0, J0, grad0, H0 = derivatives(w_s, p)
         lo, hi = ca.vertcat(w_s[:n], lbx[n:]), ca.vertcat(w_s[:n], ubx[n:])
-        data = dict(h=H0, g=grad0, a=J0, lba=lbg - g0, uba=ubg - g0, lbx=lo - w_s, ubx=hi - w_s)
+        data = dict(h=H0, g=grad0 + grad_offset, a=J0, lba=lbg - g0, uba=ubg - g0,
+                    lbx=lo - w_s, ubx=hi - w_s)
         if isinstance(self.qp_solver, ActiveSetQP):
             # the guess: the bounds the shifted plan sits at, the rows its constraints sit at
             tol = self.qp_solver.tol
@@ -179,18 +186,23 @@ class RTIPlanner(Planner):
         action = w_new[ocp.control_decision(ocp.decision_of_node(0))]
         outputs = [w_new, action, violation, res["lam_a"], res["lam_x"], qp_iterations]
         names = ["w", "u", "violation", "lam_g", "lam_x", "qp_iterations"]
-        qp_step = ca.Function("rti_qp_step", [w_s, p], outputs, ["w_s", "p"], names)
-        step = ca.Function("rti_step", [w_prev, x0, p], qp_step(ws, p),
+        qp_step = ca.Function("rti_qp_step", [w_s, p, grad_offset], outputs,
+                              ["w_s", "p", "grad_offset"], names)
+        step = ca.Function("rti_step", [w_prev, x0, p], qp_step(ws, p, ca.DM.zeros(n_w)),
                            ["w_prev", "x0", "p"], names)
         return shift, qp_step, step
 
-    def _learned_step(self, n_theta: int) -> BufferedFunction:
+    def _learned_step(self, n_theta: int, shift: bool = True) -> BufferedFunction:
         """The warm step with a node-parameter term (built once per learner size ``n_theta``):
-        ``(w_prev, x0, p, theta) -> (w, u, violation, lam_g, lam_x, qp_iterations,
+        ``(w_prev, x0, p, theta[, lam_prev]) -> (w, u, violation, lam_g, lam_x, qp_iterations,
         linearization_error)``.
         Inside: the shift, the term's expansion at the shifted plan's nodes from the
-        learner's parameters theta, the QP step, and the expansion's error at the new plan."""
-        step = self._learned_steps.get(n_theta)
+        learner's parameters theta, the QP step, and the expansion's error at the new plan.
+        For a term with a Jacobian gap (:meth:`LearnedTerm.jacobian_gap_expr`, a frozen
+        value) also ``lam_prev``, the previous plan's constraint multipliers (n_g,), and the
+        QP's gradient gets the adjoint correction ``(J_exact - J_nlp)' lam_prev``.
+        ``shift=False``: from ``w_prev`` itself (:meth:`iterate`)."""
+        step = self._learned_steps.get((n_theta, shift))
         if step is not None:
             return step
         ocp, term = self.ocp, self.planning.term
@@ -205,16 +217,74 @@ class RTIPlanner(Planner):
             return (ca.reshape(w[ix.ravel().tolist()], n, M),
                     ca.reshape(w[iu.ravel().tolist()], m, M))
 
-        ws = self._shift(w_prev, x0)
+        ws = (self._shift if shift else self._fix_x0)(w_prev, x0)
         Q = term.node_param_expr(*nodes(ws), theta)
-        out = self._qp_step(ws, ca.vertcat(p, ca.vec(Q)))
+        P_full = ca.vertcat(p, ca.vec(Q))
+        inputs, names = [w_prev, x0, p, theta], ["w_prev", "x0", "p", "theta"]
+        n_w, n_q, d = ocp.n_variables, term.n_node_params(), term.residual.n_outputs
+        w_sym, t_sym, mu_sym = (ca.MX.sym("w", n_w), ca.MX.sym("theta", n_theta),
+                                ca.MX.sym("mu", d, M))
+        gap = term.jacobian_gap_expr(*nodes(w_sym), t_sym, mu_sym)
+        if gap is None:
+            grad_offset = ca.DM.zeros(n_w)
+        else:
+            # mu_k = (dg/dq_k)' lam: the multipliers' weight on node k's learned rates
+            nlp = ocp.nlp
+            lam_sym = ca.MX.sym("lam", nlp["g"].numel())
+            adjoint = ca.Function("rti_param_adjoint", [nlp["x"], nlp["p"], lam_sym],
+                                  [ca.gradient(ca.dot(lam_sym, nlp["g"]), nlp["p"])]).expand()
+            lam_prev = ca.MX.sym("lam_prev", nlp["g"].numel())
+            tail = adjoint(ws, P_full, lam_prev)[P_full.numel() - M * n_q:]
+            mu = ca.reshape(tail, n_q, M)[:d, :]
+            gap_gradient = ca.Function("rti_jacobian_gap", [w_sym, t_sym, mu_sym],
+                                       [ca.gradient(gap, w_sym)])
+            grad_offset = gap_gradient(ws, theta, mu)
+            inputs, names = [*inputs, lam_prev], [*names, "lam_prev"]
+        out = self._qp_step(ws, P_full, grad_offset)
         error = term.plan_error_expr(*nodes(out[0]), Q, theta)
-        step = ca.Function("rti_learned_step", [w_prev, x0, p, theta], [*out, error],
-                           ["w_prev", "x0", "p", "theta"],
+        step = ca.Function("rti_learned_step", inputs, [*out, error], names,
                            ["w", "u", "violation", "lam_g", "lam_x", "qp_iterations",
                             "linearization_error"])
-        self._learned_steps[n_theta] = BufferedFunction(step)
-        return self._learned_steps[n_theta]
+        self._learned_steps[n_theta, shift] = BufferedFunction(step)
+        return self._learned_steps[n_theta, shift]
+
+    def iterate(self, x: np.ndarray, w: np.ndarray, lam_g: np.ndarray | None = None
+                ) -> tuple[np.ndarray, np.ndarray, float]:
+        """One Gauss-Newton SQP step of this period's OCP from the NLP point ``w`` (n_w,),
+        without the time shift: X(t0) set to ``x`` (n,), the rest clipped into the bounds,
+        the learned term expanded there. A fixed point (``w`` returned unchanged, with the
+        multipliers it was given) is a KKT point of the OCP. For checking convergence; the
+        controller calls :meth:`plan`.
+
+        Args:
+            x: (n,) the initial state.
+            w: (n_w,) the NLP point.
+            lam_g: (n_g,) constraint multipliers of the previous step (a term with a Jacobian
+                gap reads them; default zeros).
+
+        Returns:
+            The new point (n_w,), its QP's constraint multipliers (n_g,) and the NLP's
+            constraint violation there.
+        """
+        term: LearnedTerm = self.planning.term
+        p = self.planning.param_values()
+        n_g = self.ocp.nlp["g"].numel()
+        lam = np.zeros(n_g) if lam_g is None else np.asarray(lam_g, float)
+        if term.n_node_params():
+            theta = term.expansion_param_values()
+            step = self._learned_step(theta.size, shift=False)
+            args = [w, x, p, theta] + ([lam] if step.fn.n_in() == 5 else [])
+            out = step(*args)
+        else:
+            if self._iterate is None:
+                w_in, x_in = ca.MX.sym("w", self.ocp.n_variables), ca.MX.sym("x0", x.size)
+                p_in = ca.MX.sym("p", self.ocp.nlp["p"].numel())
+                self._iterate = BufferedFunction(ca.Function(
+                    "rti_iterate", [w_in, x_in, p_in],
+                    self._qp_step(self._fix_x0(w_in, x_in), p_in,
+                                  ca.DM.zeros(self.ocp.n_variables))))
+            out = self._iterate(w, x, p)
+        return out[0], out[3], float(out[2][0])
 
     def plan(self, x: np.ndarray, previous: Plan | None, step: int) -> tuple[Plan, dict[str, Any]]:
         """One SQP step from ``previous`` shifted to period ``step``, or a converged solve
@@ -233,7 +303,13 @@ class RTIPlanner(Planner):
         try:
             if term.n_node_params():
                 theta = term.expansion_param_values()
-                out = self._learned_step(theta.size)(w_prev, x, p, theta)
+                learned = self._learned_step(theta.size)
+                args = [w_prev, x, p, theta]
+                if learned.fn.n_in() == 5:  # a Jacobian gap: the previous multipliers
+                    lam = previous.solution.nlp_lam_g
+                    ok = lam is not None and np.all(np.isfinite(lam))
+                    args.append(lam if ok else np.zeros(self.ocp.nlp["g"].numel()))
+                out = learned(*args)
                 error = float(out[6][0])
             else:
                 out = self._step(w_prev, x, p)
