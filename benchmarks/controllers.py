@@ -31,7 +31,9 @@ whose learner also restarts when it detects that the system changed
 
 Real-time-iteration variants (:data:`RTI_VARIANTS`, preset ``rti``): ``nominal-mpc-rti``,
 ``oracle-mpc-rti``, ``ssgp-mpc-rti`` (``scheme="rti"``; the SSGP one with the GP linearized),
-``ssgp-mpc-rti-zero-order`` (the GP's value frozen per node, adjoint-corrected);
+``ssgp-mpc-rti-zero-order`` (the GP's value frozen per node, adjoint-corrected), and each
+of the three with ``-split`` (``scheme="rti-split"``: preparation after the action, feedback
+on the measurement);
 and their converged references warm-started with the previous multipliers
 (:data:`WARM_DUAL_VARIANTS`): ``nominal-mpc-warm-duals``, ``oracle-mpc-warm-duals``.
 
@@ -43,6 +45,7 @@ which the runner records instead of crashing.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -230,6 +233,14 @@ RTI_VARIANTS["ssgp-mpc-rti-zero-order"] = ControllerRecipe(
     "nominal QP structure, the gradient corrected with the previous multipliers)",
     learner="ssgp", learn_online=True,
     settings=(("scheme", "rti"), ("learned_dynamics", "zero-order")))
+for _name in ("nominal-mpc-rti", "ssgp-mpc-rti", "ssgp-mpc-rti-zero-order"):
+    _base = RTI_VARIANTS[_name]
+    RTI_VARIANTS[f"{_name}-split"] = dataclasses.replace(
+        _base, name=f"{_name}-split", label=f"{_base.label}, split",
+        description=f"{_name} split into a preparation (after the action: learner update, "
+                    "shift with the predicted initial state, expansion, QP data) and a "
+                    "feedback phase (the QP with the measured state; scheme='rti-split')",
+        settings=tuple((k, "rti-split" if k == "scheme" else v) for k, v in _base.settings))
 """Real-time-iteration variants (issue: RTI), compared by the ``rti`` preset."""
 
 WARM_DUAL_VARIANTS: dict[str, ControllerRecipe] = {

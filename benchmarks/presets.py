@@ -260,8 +260,9 @@ def linearized(seeds: Sequence[int] = tuple(range(10)),
         specs, ("acceptance", "summary", "step_times", "scaling"))
 
 
-RTI_CONTROLLERS = ("nominal-mpc", "nominal-mpc-warm-duals", "nominal-mpc-rti", "ssgp-mpc",
-                   "ssgp-mpc-rti")
+RTI_CONTROLLERS = ("nominal-mpc", "nominal-mpc-warm-duals", "nominal-mpc-rti",
+                   "nominal-mpc-rti-split", "ssgp-mpc", "ssgp-mpc-rti", "ssgp-mpc-rti-split",
+                   "ssgp-mpc-rti-zero-order", "ssgp-mpc-rti-zero-order-split")
 """The converged and real-time-iteration recipes the ``rti`` preset compares."""
 
 
@@ -284,11 +285,15 @@ def rti(seeds: Sequence[int] = tuple(range(10)),
         "(`scheme='converged'`; nominal and oracle also with warm-started multipliers, "
         "`warm_start_duals=True`, the faster converged reference) and as a real-time "
         "iteration (`scheme='rti'`: a converged cold start, then one Gauss-Newton SQP step "
-        "per period; the SSGP one with the GP linearized per node at the shifted plan), all "
-        "in one run so that the step-time ratios compare like with like; and the SSGP RTI's "
-        "step time after learning 200 vs 5,000 samples. Targets: nominal RTI step at most "
-        "0.15x the converged one (reported against both converged references); SSGP RTI "
-        "at most 1.5x the nominal RTI; the same successes as the converged MPC.",
+        "per period; the SSGP one with the GP linearized per node at the shifted plan, or "
+        "with its value frozen per node and the gradient adjoint-corrected, `zero-order`), "
+        "each RTI also split into a preparation after the action and a feedback phase on the "
+        "measurement (`-split`, `scheme='rti-split'`: its latency is the act time minus the "
+        "preparation), all in one run so that the step-time ratios compare like with like; "
+        "and the SSGP RTI's step time after learning 200 vs 5,000 samples. Targets: nominal "
+        "RTI step at most 0.15x the converged one (reported against both converged "
+        "references); SSGP RTI at most 1.5x the nominal RTI; the same successes as the "
+        "converged MPC.",
         specs, ("acceptance", "summary", "step_times", "scaling"))
 
 

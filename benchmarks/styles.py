@@ -102,6 +102,11 @@ STYLES: dict[str, Style] = {
     "ssgp-mpc-linearized-adaptive": Style(_SSGP_LINEARIZED_ADAPTIVE, RECEDING, "$l$"),
     # the SSGP RTI plans with the residual linearized per node, as ssgp-mpc-linearized does
     "ssgp-mpc-rti": Style(_SSGP_LINEARIZED, RTI, "8"),
+    # the zero-order RTI plans with the residual's value only; "-split": preparation/feedback
+    "ssgp-mpc-rti-zero-order": Style(_SSGP, RTI, "$z$"),
+    "nominal-mpc-rti-split": Style(_NOMINAL, RTI, "$n$", linewidth=1.6),
+    "ssgp-mpc-rti-split": Style(_SSGP_LINEARIZED, RTI, "$s$"),
+    "ssgp-mpc-rti-zero-order-split": Style(_SSGP, RTI, "$Z$"),
     "sac": Style(_SAC, RECEDING, "*"),
     "ppo": Style(_PPO, RECEDING, "X"),
 }

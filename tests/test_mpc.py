@@ -503,6 +503,62 @@ def test_zero_order_rti_keeps_the_nominal_qp_structure_and_swings_up():
     assert zo_agent.planner.n_rti_steps > 100
 
 
+@pytest.mark.parametrize("term", ["none", "linearized", "zero-order"])
+def test_the_split_rtis_feedback_at_the_predicted_state_is_the_one_call_step(term):
+    """Preparation (shift with the predicted X(t0), expansion, QP data) then feedback with the
+    measured state equal to the prediction gives the one-call RTI's step from the same plan
+    and state (its QP solution, multipliers and constraint violation); from another state the
+    feedback's plan starts at that state."""
+    env = gym.make(CART, scenario="gp")
+    learner = None if term == "none" else online_ssgp(10)
+    kwargs = {} if learner is None else {"learned_dynamics": term}
+    agent = PseudospectralMPC.from_env(env, learner, scheme="rti-split", **kwargs)
+    if learner is not None:
+        agent.pretrain(collect_initial_data(env, 60, seed=0))
+    obs, _ = env.reset(seed=0)
+    for _ in range(30):  # closed-loop steps (no learning) into the RTI's accepted steps
+        u = agent.act(obs)
+        obs, *_ = env.step(u)
+    planner, previous = agent.planner, agent.plan
+    # the one-call RTI on the same episode's nominal model and the same fitted learner
+    reference = PseudospectralMPC.from_env(env, agent.learner, scheme="rti",
+                                           **kwargs)._planner()
+    step = previous.step + agent.mesh.held_periods
+    planner.prepare(previous, step)
+    prep = planner._prepared
+    x_pred = prep["w_s"][:obs.size].copy()
+    fed = planner._feedback(prep["w_s"], x_pred, prep["h"], prep["grad"], prep["a"], prep["g"],
+                            prep["p"])
+    args = [previous.solution.nlp_x, x_pred, planner.planning.param_values()]
+    if learner is None:
+        one_call = reference._step(*args)
+    else:
+        theta = reference.planning.term.expansion_param_values()
+        fn = reference._learned_step(theta.size)
+        lam = [previous.solution.nlp_lam_g] if fn.fn.n_in() == 5 else []
+        one_call = fn(*args, theta, *lam)
+    for a, b in zip(fed[:5], one_call[:5], strict=True):  # w, u, violation, lam_g, lam_x
+        np.testing.assert_allclose(a, b, rtol=1e-8, atol=1e-9)
+    x = x_pred + 0.01
+    plan, _ = planner.plan(x, previous, step)
+    assert planner.n_prepared == 29 + 1  # steps 1-29 and this one
+    np.testing.assert_allclose(plan.solution.x[0], x, atol=1e-10)
+
+
+def test_split_rti_closed_loop_records_latency_and_preparation():
+    env = gym.make(CART, scenario="gp")
+    one_call = PseudospectralMPC.from_env(env, scheme="rti")
+    reference = rollout(env, one_call, 0)
+    agent = PseudospectralMPC.from_env(env, scheme="rti-split")
+    split = rollout(env, agent, 0)
+    d = agent.diagnostics_arrays()
+    assert split.success and split.cost == pytest.approx(reference.cost, rel=0.01)
+    assert agent.planner.n_prepared > 100 and agent.planner.n_unprepared < 5
+    assert np.all(d["preparation_time"][1:] > 0) and d["preparation_time"][0] > 0
+    assert np.all(d["preparation_time"] < d["act_time"])
+    assert np.all(d["preparation_time"][d["status"] == "reuse"] == 0)
+
+
 def test_rti_tracks_the_converged_mpc_and_its_safety_net_falls_back_to_it():
     env = gym.make(CART, scenario="gp")
     converged = rollout(env, PseudospectralMPC.from_env(env), 0)
@@ -520,7 +576,7 @@ def test_rti_tracks_the_converged_mpc_and_its_safety_net_falls_back_to_it():
     fallback = rollout(env, strict, 0)
     assert strict.planner.n_rti_rejected == strict.planner.n_rti_steps == 119
     assert fallback.cost == pytest.approx(converged.cost, rel=1e-3)
-    with pytest.raises(ValueError, match="scheme"):
+    with pytest.raises(ValueError, match="scheme must be one of"):
         PseudospectralMPC.from_env(env, scheme="sometimes")
 
 

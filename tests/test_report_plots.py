@@ -82,13 +82,13 @@ def test_every_recipe_has_one_fixed_distinct_style() -> None:
     assert len(set(markers)) == len(markers)  # points-only plots tell them apart too
     # receding-horizon recipes of different models never share a colour
     receding = [c for c, r in CONTROLLERS.items()
-                if r.mode == "receding" and ("scheme", "rti") not in r.settings
-                and ("warm_start_duals", True) not in r.settings]
+                if r.mode == "receding" and dict(r.settings).get("scheme", "converged")
+                == "converged" and ("warm_start_duals", True) not in r.settings]
     colours = [style(c).color for c in receding]
     assert len(set(colours)) == len(colours)
     assert style("ssgp-mpc").color != style("ssgp-mpc-linearized").color
     for name, recipe in CONTROLLERS.items():
-        expected = (RTI if ("scheme", "rti") in recipe.settings
+        expected = (RTI if dict(recipe.settings).get("scheme") in ("rti", "rti-split")
                     else WARM_DUALS if ("warm_start_duals", True) in recipe.settings
                     else EPISODIC if recipe.mode == "episodic" else RECEDING)
         assert style(name).linestyle == expected, name

@@ -37,9 +37,14 @@ from gp_agents.mpc.ocp import Constraints
 from gp_agents.mpc.planner import Plan, Planner
 from gp_agents.mpc.planning_model import PlanningModel
 from gp_agents.mpc.rti import RTIPlanner
+from gp_agents.mpc.rti_split import SplitRTIPlanner
 from gp_agents.mpc.schedule import Episodic, RecedingHorizon, planning_defaults
 from gp_agents.residual import ResidualModel
 from gp_envs.model import ControlModel
+
+SCHEMES: dict[str, type[Planner]] = {"converged": Planner, "rti": RTIPlanner,
+                                     "rti-split": SplitRTIPlanner}
+"""``scheme`` names and their planners."""
 
 LEARNED_TERMS: dict[str, type[LearnedTerm]] = {"exact": GPInNLP, "linearized": LinearizedGP,
                                                "zero-order": ZeroOrderGP}
@@ -93,9 +98,13 @@ class PseudospectralMPC:
         solver, solver_options, jit: the NLP solver (:class:`~gp_agents.mpc.planner.Planner`).
         max_iterations: iteration cap of one solve; the only cap (no wall-clock limit).
         state_margin, state_penalty, obstacle_margin: :class:`~gp_agents.mpc.ocp.Constraints`.
-        scheme: ``"converged"`` (every plan solved to convergence) or ``"rti"`` (a converged
+        scheme: ``"converged"`` (every plan solved to convergence), ``"rti"`` (a converged
             solve at a cold start, then one Gauss-Newton SQP step per replan:
-            :class:`~gp_agents.mpc.rti.RTIPlanner`).
+            :class:`~gp_agents.mpc.rti.RTIPlanner`) or ``"rti-split"`` (the same step split
+            into a preparation, done in ``act`` after the action is known together with the
+            learner update, and a feedback phase, the QP with the measured state:
+            :class:`~gp_agents.mpc.rti_split.SplitRTIPlanner`; each step's record has its
+            ``preparation_time``, the rest of ``act_time`` is the latency).
         qp_solver: the RTI step's QP solver: a CasADi conic plugin name,
             ``"active-set:<plugin>"`` or an :class:`~gp_agents.mpc.active_set.ActiveSetQP`
             (:class:`~gp_agents.mpc.rti.RTIPlanner`; default per system, chosen by
@@ -120,7 +129,7 @@ class PseudospectralMPC:
                  solver_options: Mapping[str, Any] | None = None, max_iterations: int = 500,
                  state_margin: float = 0.05, state_penalty: float | None = 1e4,
                  obstacle_margin: float = 0.1, jit: bool = False,
-                 scheme: Literal["converged", "rti"] = "converged",
+                 scheme: Literal["converged", "rti", "rti-split"] = "converged",
                  qp_solver: str | ActiveSetQP | None = None,
                  warm_start_duals: bool | None = None) -> None:
         if not isinstance(model, ControlModel):
@@ -144,8 +153,8 @@ class PseudospectralMPC:
                                      if n_nodes is None else n_nodes)
         else:
             raise ValueError(f"mode must be 'receding' or 'episodic', got {mode!r}")
-        if scheme not in ("converged", "rti"):
-            raise ValueError(f"scheme must be 'converged' or 'rti', got {scheme!r}")
+        if scheme not in SCHEMES:
+            raise ValueError(f"scheme must be one of {list(SCHEMES)}, got {scheme!r}")
         self.scheme = scheme
         self.qp_solver = qp_solver or (defaults.qp_solver if defaults else "osqp")
         self.warm_start_duals = None if warm_start_duals is None else bool(warm_start_duals)
@@ -273,10 +282,12 @@ class PseudospectralMPC:
         size = self.term.param_values().size  # raises RuntimeError for an unfitted learner
         planning = self.planner.planning if self.planner is not None else None
         if planning is None or size != planning.n_params - planning.n_nominal:
-            extra: dict[str, Any] = {"qp_solver": self.qp_solver} if self.scheme == "rti" else {}
+            planner = SCHEMES[self.scheme]
+            extra: dict[str, Any] = ({"qp_solver": self.qp_solver}
+                                     if issubclass(planner, RTIPlanner) else {})
             if self.warm_start_duals is not None:
                 extra["warm_start_duals"] = self.warm_start_duals
-            self.planner = (RTIPlanner if self.scheme == "rti" else Planner)(
+            self.planner = planner(
                 PlanningModel(self.model, self.residual, self.term), self.mesh,
                 self.constraints, solver=self.solver, solver_options=self.solver_options,
                 max_iterations=self.max_iterations, jit=self.jit, **extra)
@@ -297,15 +308,26 @@ class PseudospectralMPC:
             self._set_model(self._model_source())
         record: dict[str, Any] = dict(replanned=False, success=True, status="reuse",
                                       iterations=0, solve_time=0.0, fallback=False, solves=0,
-                                      linearization_error=0.0)
+                                      linearization_error=0.0, preparation_time=0.0)
+        split = self.scheme == "rti-split"
         if self.schedule.due(self._step, self._plan):
-            self._flush_learning()
+            if not split:
+                self._flush_learning()
             self._plan, solved = self._planner().plan(x, self._plan, self._step)
             record.update(replanned=True, **solved)
         plan = self._plan
         assert plan is not None
         u = plan.action(self._step, self.model.u_lb, self.model.u_ub).astype(np.float32)
         u = np.clip(u, self.model.u_lb.astype(np.float32), self.model.u_ub.astype(np.float32))
+        if split and record["replanned"]:  # the preparation of the next replan, after u
+            prepared = time.perf_counter()
+            self._flush_learning()
+            planner = self._planner()
+            assert isinstance(planner, SplitRTIPlanner)
+            info = planner.prepare(plan, plan.step + self.mesh.held_periods)
+            if record["status"] == "RTI":
+                record["linearization_error"] = info["linearization_error"]
+            record["preparation_time"] = time.perf_counter() - prepared
         offset = (self._step - plan.step) * self.model.dt
         self.diagnostics.append(StepRecord(
             step=self._step, learner_samples=self._learner_samples(), action=u.copy(),

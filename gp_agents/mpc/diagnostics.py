@@ -31,6 +31,9 @@ class StepRecord:
         linearization_error: with a linearized learned term, the plan's largest expansion
             error as a fraction of its tolerance (NaN if the solve gave no finite plan; 0
             otherwise).
+        preparation_time: seconds of ``act_time`` spent after the action was known (the
+            ``"rti-split"`` scheme's learner update and preparation; 0 otherwise): the
+            latency is ``act_time - preparation_time``.
     """
 
     step: int
@@ -47,6 +50,7 @@ class StepRecord:
     action: np.ndarray
     solves: int = 0
     linearization_error: float = 0.0
+    preparation_time: float = 0.0
 
 
 def records_to_arrays(records: list[StepRecord]) -> dict[str, np.ndarray]:

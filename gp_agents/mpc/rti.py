@@ -141,6 +141,7 @@ class RTIPlanner(Planner):
         derivatives = ca.Function("rti_derivatives", [w, P],
                                   [g, J, ca.gradient(f, w), H]).expand()
         constraints = ca.Function("rti_g", [w, P], [g]).expand()
+        self._derivatives, self._constraints = derivatives, constraints
 
         # the shift: interpolants at the shifted times, angles moved by 2 pi k to start at the
         # measured ones, clipped into the bounds, X(t0) the measured state
@@ -159,10 +160,10 @@ class RTIPlanner(Planner):
             "rti_fix_x0", [w_prev, x0], [ca.vertcat(x0, ca.fmin(ca.fmax(w_prev[n:], lbx[n:]),
                                                               ubx[n:]))], ["w_prev", "x0"], ["w"])
         if isinstance(self.qp_solver, ActiveSetQP):
-            qp = self.qp_solver.function(H.sparsity(), J.sparsity())
+            self._qp = self.qp_solver.function(H.sparsity(), J.sparsity())
         else:
-            qp = ca.conic("rti_qp", self.qp_solver, {"h": H.sparsity(), "a": J.sparsity()},
-                          qp_options)
+            self._qp = ca.conic("rti_qp", self.qp_solver,
+                                {"h": H.sparsity(), "a": J.sparsity()}, qp_options)
 
         # the Gauss-Newton QP step and what it gives (grad_offset: an adjoint correction)
         w_s, p = ca.MX.sym("w_s", n_w), ca.MX.sym("p", P.numel())
@@ -171,15 +172,7 @@ class RTIPlanner(Planner):
         lo, hi = ca.vertcat(w_s[:n], lbx[n:]), ca.vertcat(w_s[:n], ubx[n:])
         data = dict(h=H0, g=grad0 + grad_offset, a=J0, lba=lbg - g0, uba=ubg - g0,
                     lbx=lo - w_s, ubx=hi - w_s)
-        if isinstance(self.qp_solver, ActiveSetQP):
-            # the guess: the bounds the shifted plan sits at, the rows its constraints sit at
-            tol = self.qp_solver.tol
-            res = qp(**data, guess_x=(data["ubx"] <= tol) - (data["lbx"] >= -tol),
-                     guess_a=(data["uba"] <= tol) - (data["lba"] >= -tol))
-            qp_iterations = res["iterations"]
-        else:
-            res = qp(**data, x0=ca.DM.zeros(n_w))
-            qp_iterations = ca.MX(-1)
+        res, qp_iterations = self._solve_qp(data)
         w_new = w_s + res["x"]
         g_new = constraints(w_new, p)
         violation = ca.mmax(ca.vertcat(ca.fmax(lbg - g_new, 0), ca.fmax(g_new - ubg, 0)))
@@ -191,6 +184,19 @@ class RTIPlanner(Planner):
         step = ca.Function("rti_step", [w_prev, x0, p], qp_step(ws, p, ca.DM.zeros(n_w)),
                            ["w_prev", "x0", "p"], names)
         return shift, qp_step, step
+
+    def _solve_qp(self, data: dict[str, ca.MX]) -> tuple[dict[str, ca.MX], ca.MX]:
+        """The QP ``data`` (conic inputs ``h, g, a, lba, uba, lbx, ubx`` in the step ``dw``)
+        solved symbolically: the result (``x, lam_a, lam_x``) and the active-set iterations
+        (0: it fell back; -1: a plain plugin)."""
+        if isinstance(self.qp_solver, ActiveSetQP):
+            # the guess: the bounds the shifted plan sits at, the rows its constraints sit at
+            tol = self.qp_solver.tol
+            res = self._qp(**data, guess_x=(data["ubx"] <= tol) - (data["lbx"] >= -tol),
+                           guess_a=(data["uba"] <= tol) - (data["lba"] >= -tol))
+            return res, res["iterations"]
+        res = self._qp(**data, x0=ca.DM.zeros(data["g"].numel()))
+        return res, ca.MX(-1)
 
     def _learned_step(self, n_theta: int, shift: bool = True) -> BufferedFunction:
         """The warm step with a node-parameter term (built once per learner size ``n_theta``):
@@ -300,26 +306,42 @@ class RTIPlanner(Planner):
         p = self.planning.param_values()
         w_prev = previous.solution.nlp_x
         error = 0.0
+        out: tuple[np.ndarray, ...] | None
         try:
             if term.n_node_params():
                 theta = term.expansion_param_values()
                 learned = self._learned_step(theta.size)
                 args = [w_prev, x, p, theta]
                 if learned.fn.n_in() == 5:  # a Jacobian gap: the previous multipliers
-                    lam = previous.solution.nlp_lam_g
-                    ok = lam is not None and np.all(np.isfinite(lam))
-                    args.append(lam if ok else np.zeros(self.ocp.nlp["g"].numel()))
+                    args.append(self._multipliers(previous))
                 out = learned(*args)
                 error = float(out[6][0])
             else:
                 out = self._step(w_prev, x, p)
+        except RuntimeError:  # the QP plugin raised (e.g. osqp's "Problem in osqp_update_P_A")
+            out = None
+        return self._accept(x, previous, step, out, p, error, time.perf_counter() - start)
+
+    def _multipliers(self, previous: Plan) -> np.ndarray:
+        """``previous``'s constraint multipliers (n_g,), zeros if it has none (finite)."""
+        lam = previous.solution.nlp_lam_g
+        if lam is None or not np.all(np.isfinite(lam)):
+            return np.zeros(self.ocp.nlp["g"].numel())
+        return lam
+
+    def _accept(self, x: np.ndarray, previous: Plan, step: int,
+                out: tuple[np.ndarray, ...] | None, p: np.ndarray, error: float,
+                elapsed: float) -> tuple[Plan, dict[str, Any]]:
+        """The safety net on a step's outputs ``(w, u, violation, lam_g, lam_x,
+        qp_iterations, ...)`` (None: the QP plugin raised): the step's plan, or the converged
+        solve that replaces a rejected one."""
+        if out is None:
+            w_new, violation = np.full(self.ocp.n_variables, np.nan), np.inf
+            lam_g = lam_x = w_new
+        else:
             w_new, _, violation, lam_g, lam_x, qp_iterations = out[:6]
             violation = float(violation[0])
             self.n_qp_fallbacks += int(qp_iterations[0] == 0)
-        except RuntimeError:  # the QP plugin raised (e.g. osqp's "Problem in osqp_update_P_A")
-            w_new, violation = np.full(self.ocp.n_variables, np.nan), np.inf
-            lam_g = lam_x = w_new
-        elapsed = time.perf_counter() - start
         self.n_rti_steps += 1
         if not (np.all(np.isfinite(w_new)) and violation <= self.max_violation):
             self.n_rti_rejected += 1

@@ -1,0 +1,234 @@
+"""Real-time iteration split into a preparation and a feedback phase (acados' ``rti_phase``).
+
+The one-call RTI (:class:`~gp_agents.mpc.rti.RTIPlanner`) does everything after the state is
+measured: it shifts the plan, puts the measured state at X(t0), linearizes there (the learned
+term's expansion included), solves the QP. Everything but the QP and the measured state can be
+done *before* the measurement, in the time between sending a control and receiving the next
+state. Split, as acados does it:
+
+- **preparation** (:meth:`SplitRTIPlanner.prepare`, right after a plan is made): shift it to
+  the next replanning period, keeping its own *predicted* X(t0); expand the learned term at
+  the shifted plan's nodes and evaluate the QP's matrices and vectors there (the adjoint
+  correction of a frozen term included); the previous feedback's expansion error.
+- **feedback** (:meth:`SplitRTIPlanner.plan`, when the state is measured): the QP with the
+  measured state as the bound on X(t0) (``dw(t0) = x - X_pred(t0)``), the constraint check of
+  the safety net, the action. Its time is the controller's latency.
+
+What changes against the one-call RTI: the linearization point is the predicted, not the
+measured, initial state (the QP's step from it is exact in X(t0)); and the learner update
+with the newest sample happens in the preparation *after* it, so each QP plans with the
+learner as it was one sample earlier. The safety net is the one-call RTI's. A step that was
+not prepared for (the cold start, a plan from a converged solve that replaced a rejected step
+is prepared like any other) or whose measured angles lie a full turn from the prediction
+(:attr:`n_unprepared`) takes the one-call path.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from gp_agents.mpc.planner import Plan
+from gp_agents.mpc.rti import RTIPlanner
+from gp_agents.pseudospectral import BufferedFunction, OCPSolution
+
+__all__ = ["SplitRTIPlanner"]
+
+
+class SplitRTIPlanner(RTIPlanner):
+    """:class:`RTIPlanner` with a preparation phase (:meth:`prepare`) and a feedback phase
+    (:meth:`plan`); arguments as for :class:`RTIPlanner`.
+
+    Counters: :attr:`n_prepared` feedback steps, :attr:`n_unprepared` warm steps that took
+    the one-call path.
+    """
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._prepares: dict[int, BufferedFunction] = {}
+        self._errors: dict[int, BufferedFunction] = {}
+        self._feedback = self._build_feedback()
+        self._prepared: dict[str, Any] | None = None
+        self.n_prepared = self.n_unprepared = 0
+
+    # ------------------------------------------------------------------ compiled phases
+    def _nodes(self, w: ca.MX) -> tuple[ca.MX, ca.MX]:
+        ix, iu = self.ocp.node_indices()
+        n, m = self.planning.model.n_states, self.planning.model.n_controls
+        M = ix.shape[0]
+        return (ca.reshape(w[ix.ravel().tolist()], n, M),
+                ca.reshape(w[iu.ravel().tolist()], m, M))
+
+    def _prepare_function(self, n_theta: int) -> BufferedFunction:
+        """``(w_prev, p[, theta[, lam_prev]]) -> (w_s, h, grad, a, g, P)``: the plan shifted
+        with its predicted X(t0), the QP's Hessian and Jacobian nonzeros, gradient and
+        constraint values there, and the NLP parameters (node parameters included)."""
+        fn = self._prepares.get(n_theta)
+        if fn is not None:
+            return fn
+        ocp, term = self.ocp, self.planning.term
+        n, n_w = self.planning.model.n_states, ocp.n_variables
+        lbx, ubx = (ca.DM(b) for b in ocp.bounds()[:2])
+        w_prev = ca.MX.sym("w_prev", n_w)
+        dt = self.mesh.held_periods * self.planning.model.dt
+        ws = ca.mtimes(ca.DM(ca.sparsify(ca.DM(ocp.shift_operator(dt)))), w_prev)
+        ws = ca.vertcat(ws[:n], ca.fmin(ca.fmax(ws[n:], lbx[n:]), ubx[n:]))
+        p_size = ocp.nlp["p"].numel()
+        inputs, names = [w_prev], ["w_prev"]
+        grad_offset: Any = ca.DM.zeros(n_w)
+        if n_theta:
+            M = ocp.node_indices()[0].shape[0]
+            p = ca.MX.sym("p", p_size - M * term.n_node_params())
+            theta = ca.MX.sym("theta", n_theta)
+            Q = term.node_param_expr(*self._nodes(ws), theta)
+            P_full = ca.vertcat(p, ca.vec(Q))
+            inputs, names = [*inputs, p, theta], [*names, "p", "theta"]
+            grad_offset, lam = self._gap_offset(ws, P_full, theta, n_theta)
+            if lam is not None:
+                inputs, names = [*inputs, lam], [*names, "lam_prev"]
+        else:
+            P_full = ca.MX.sym("p", p_size)
+            inputs, names = [*inputs, P_full], [*names, "p"]
+        g0, J0, grad0, H0 = self._derivatives(ws, P_full)
+        fn = BufferedFunction(ca.Function(
+            "rti_prepare", inputs, [ws, H0.nz[:], grad0 + grad_offset, J0.nz[:], g0, P_full],
+            names, ["w_s", "h", "grad", "a", "g", "p_full"]))
+        self._prepares[n_theta] = fn
+        return fn
+
+    def _gap_offset(self, ws: ca.MX, P_full: ca.MX, theta: ca.MX, n_theta: int
+                    ) -> tuple[Any, ca.MX | None]:
+        """The adjoint correction at ``ws`` for a term with a Jacobian gap (and the symbol of
+        the previous multipliers it reads), or zeros and None."""
+        ocp, term = self.ocp, self.planning.term
+        M, d = ocp.node_indices()[0].shape[0], term.residual.n_outputs
+        n_q = term.n_node_params()
+        w_sym, t_sym, mu_sym = (ca.MX.sym("w", ocp.n_variables), ca.MX.sym("theta", n_theta),
+                                ca.MX.sym("mu", d, M))
+        gap = term.jacobian_gap_expr(*self._nodes(w_sym), t_sym, mu_sym)
+        if gap is None:
+            return ca.DM.zeros(ocp.n_variables), None
+        nlp = ocp.nlp
+        lam_sym = ca.MX.sym("lam", nlp["g"].numel())
+        adjoint = ca.Function("rti_param_adjoint", [nlp["x"], nlp["p"], lam_sym],
+                              [ca.gradient(ca.dot(lam_sym, nlp["g"]), nlp["p"])]).expand()
+        lam_prev = ca.MX.sym("lam_prev", nlp["g"].numel())
+        tail = adjoint(ws, P_full, lam_prev)[P_full.numel() - M * n_q:]
+        mu = ca.reshape(tail, n_q, M)[:d, :]
+        gap_gradient = ca.Function("rti_jacobian_gap", [w_sym, t_sym, mu_sym],
+                                   [ca.gradient(gap, w_sym)])
+        return gap_gradient(ws, theta, mu), lam_prev
+
+    def _error_function(self, n_theta: int) -> BufferedFunction:
+        """``(w, P, theta) -> error``: the learned term's expansion error at the plan ``w``
+        for the node parameters in ``P`` (:meth:`LearnedTerm.plan_error_expr`)."""
+        fn = self._errors.get(n_theta)
+        if fn is None:
+            ocp, term = self.ocp, self.planning.term
+            M = ocp.node_indices()[0].shape[0]
+            n_q = term.n_node_params()
+            w, theta = ca.MX.sym("w", ocp.n_variables), ca.MX.sym("theta", n_theta)
+            P = ca.MX.sym("p", ocp.nlp["p"].numel())
+            Q = ca.reshape(P[P.numel() - M * n_q:], n_q, M)
+            fn = BufferedFunction(ca.Function(
+                "rti_plan_error", [w, P, theta],
+                [term.plan_error_expr(*self._nodes(w), Q, theta)]))
+            self._errors[n_theta] = fn
+        return fn
+
+    def _build_feedback(self) -> BufferedFunction:
+        """``(w_s, x0, h, grad, a, g, P) -> (w, u, violation, lam_g, lam_x, qp_iterations)``:
+        the QP from prepared data with X(t0) moved to the measured state."""
+        ocp = self.ocp
+        n, n_w = self.planning.model.n_states, ocp.n_variables
+        lbx, ubx, lbg, ubg = (ca.DM(b) for b in ocp.bounds())
+        w_s = ca.MX.sym("w_s", n_w)
+        P = ca.MX.sym("p", ocp.nlp["p"].numel())
+        _, J_sym, _, H_sym = self._derivatives(w_s, P)
+        x0 = ca.MX.sym("x0", n)
+        h = ca.MX.sym("h", H_sym.nnz())
+        a = ca.MX.sym("a", J_sym.nnz())
+        grad, g0 = ca.MX.sym("grad", n_w), ca.MX.sym("g", ocp.nlp["g"].numel())
+        H, J = ca.MX(H_sym.sparsity(), h), ca.MX(J_sym.sparsity(), a)
+        lo, hi = ca.vertcat(x0, lbx[n:]), ca.vertcat(x0, ubx[n:])
+        data = dict(h=H, g=grad, a=J, lba=lbg - g0, uba=ubg - g0, lbx=lo - w_s, ubx=hi - w_s)
+        res, qp_iterations = self._solve_qp(data)
+        w_new = w_s + res["x"]
+        g_new = self._constraints(w_new, P)
+        violation = ca.mmax(ca.vertcat(ca.fmax(lbg - g_new, 0), ca.fmax(g_new - ubg, 0)))
+        action = w_new[ocp.control_decision(ocp.decision_of_node(0))]
+        return BufferedFunction(ca.Function(
+            "rti_feedback", [w_s, x0, h, grad, a, g0, P],
+            [w_new, action, violation, res["lam_a"], res["lam_x"], qp_iterations],
+            ["w_s", "x0", "h", "grad", "a", "g", "p"],
+            ["w", "u", "violation", "lam_g", "lam_x", "qp_iterations"]))
+
+    # ------------------------------------------------------------------ the phases
+    def prepare(self, previous: Plan, step: int) -> dict[str, float]:
+        """The preparation phase for the replan at period ``step`` from ``previous`` (the plan
+        just made); call it after updating the learner.
+
+        Returns:
+            ``preparation_time`` (s) and ``linearization_error``: the expansion error of
+            ``previous`` if it came from a prepared feedback step (else NaN).
+        """
+        start = time.perf_counter()
+        error = float("nan")
+        done = self._prepared
+        if done is not None and done.get("plan") is previous and done["n_theta"]:
+            error = float(self._error_function(done["n_theta"])(
+                previous.solution.nlp_x, done["p"], done["theta"])[0][0])
+        self._prepared = None
+        if not (isinstance(previous.solution, OCPSolution)
+                and self.ocp.same_transcription(previous.solution)):
+            return dict(preparation_time=time.perf_counter() - start, linearization_error=error)
+        term = self.planning.term
+        p = self.planning.param_values()
+        w_prev = previous.solution.nlp_x
+        if term.n_node_params():
+            theta = term.expansion_param_values()
+            fn = self._prepare_function(theta.size)
+            args = [w_prev, p, theta]
+            if fn.fn.n_in() == 4:
+                args.append(self._multipliers(previous))
+        else:
+            theta = np.zeros(0)
+            fn = self._prepare_function(0)
+            args = [w_prev, p]
+        ws, h, grad, a, g, P = fn(*args)
+        self._prepared = dict(previous=previous, step=step, w_s=ws, h=h, grad=grad, a=a, g=g,
+                              p=P, p_nlp=p, theta=theta, n_theta=theta.size)
+        return dict(preparation_time=time.perf_counter() - start, linearization_error=error)
+
+    def plan(self, x: np.ndarray, previous: Plan | None, step: int) -> tuple[Plan, dict[str, Any]]:
+        """The feedback phase if this step was prepared for (:meth:`prepare`), else the
+        one-call RTI step (or a converged solve)."""
+        prep, self._prepared = self._prepared, None
+        if prep is None or prep["previous"] is not previous or prep["step"] != step:
+            return self._one_call(x, previous, step)
+        angles = list(self.planning.model.angle_indices)
+        if angles and np.any(np.abs(x[angles] - prep["w_s"][angles]) > np.pi):
+            return self._one_call(x, previous, step)
+        start = time.perf_counter()
+        out: tuple[np.ndarray, ...] | None
+        try:
+            out = self._feedback(prep["w_s"], x, prep["h"], prep["grad"], prep["a"], prep["g"],
+                                 prep["p"])
+        except RuntimeError:  # the QP plugin raised
+            out = None
+        self.n_prepared += 1
+        plan, record = self._accept(x, previous, step, out, prep["p_nlp"], float("nan"),
+                                    time.perf_counter() - start)
+        if record["status"] == "RTI":
+            prep["plan"] = plan
+            self._prepared = prep  # kept for the expansion error at the next preparation
+        return plan, record
+
+    def _one_call(self, x: np.ndarray, previous: Plan | None, step: int
+                  ) -> tuple[Plan, dict[str, Any]]:
+        warm = previous is not None and step - previous.step == self.mesh.held_periods
+        self.n_unprepared += int(warm)
+        return super().plan(x, previous, step)
