@@ -198,6 +198,39 @@ class RTIPlanner(Planner):
         res = self._qp(**data, x0=ca.DM.zeros(data["g"].numel()))
         return res, ca.MX(-1)
 
+    def _nodes(self, w: ca.MX) -> tuple[ca.MX, ca.MX]:
+        """Node states (n, M) and controls (m, M) of the NLP point ``w``."""
+        ix, iu = self.ocp.node_indices()
+        n, m = self.planning.model.n_states, self.planning.model.n_controls
+        M = ix.shape[0]
+        return (ca.reshape(w[ix.ravel().tolist()], n, M),
+                ca.reshape(w[iu.ravel().tolist()], m, M))
+
+    def _gap_offset(self, ws: ca.MX, P_full: ca.MX, theta: ca.MX, n_theta: int
+                    ) -> tuple[Any, ca.MX | None]:
+        """The adjoint correction of the QP's gradient at ``ws`` for a term with a Jacobian
+        gap, ``(J_exact - J_nlp)' lam_prev``, and the symbol of the previous multipliers it
+        reads; zeros and None for any other term."""
+        ocp, term = self.ocp, self.planning.term
+        M, d = ocp.node_indices()[0].shape[0], term.residual.n_outputs
+        n_q = term.n_node_params()
+        w_sym, t_sym, mu_sym = (ca.MX.sym("w", ocp.n_variables), ca.MX.sym("theta", n_theta),
+                                ca.MX.sym("mu", d, M))
+        gap = term.jacobian_gap_expr(*self._nodes(w_sym), t_sym, mu_sym)
+        if gap is None:
+            return ca.DM.zeros(ocp.n_variables), None
+        # mu_k = (dg/dq_k)' lam: the multipliers' weight on node k's learned rates
+        nlp = ocp.nlp
+        lam_sym = ca.MX.sym("lam", nlp["g"].numel())
+        adjoint = ca.Function("rti_param_adjoint", [nlp["x"], nlp["p"], lam_sym],
+                              [ca.gradient(ca.dot(lam_sym, nlp["g"]), nlp["p"])]).expand()
+        lam_prev = ca.MX.sym("lam_prev", nlp["g"].numel())
+        tail = adjoint(ws, P_full, lam_prev)[P_full.numel() - M * n_q:]
+        mu = ca.reshape(tail, n_q, M)[:d, :]
+        gap_gradient = ca.Function("rti_jacobian_gap", [w_sym, t_sym, mu_sym],
+                                   [ca.gradient(gap, w_sym)])
+        return gap_gradient(ws, theta, mu), lam_prev
+
     def _learned_step(self, n_theta: int, shift: bool = True) -> BufferedFunction:
         """The warm step with a node-parameter term (built once per learner size ``n_theta``):
         ``(w_prev, x0, p, theta[, lam_prev]) -> (w, u, violation, lam_g, lam_x, qp_iterations,
@@ -212,42 +245,20 @@ class RTIPlanner(Planner):
         if step is not None:
             return step
         ocp, term = self.ocp, self.planning.term
-        n, m = self.planning.model.n_states, self.planning.model.n_controls
-        ix, iu = ocp.node_indices()
-        M = ix.shape[0]
+        n = self.planning.model.n_states
+        M = ocp.node_indices()[0].shape[0]
         w_prev, x0 = ca.MX.sym("w_prev", ocp.n_variables), ca.MX.sym("x0", n)
         p, theta = ca.MX.sym("p", ocp.nlp["p"].numel() - M * term.n_node_params()), \
             ca.MX.sym("theta", n_theta)
-
-        def nodes(w: ca.MX) -> tuple[ca.MX, ca.MX]:
-            return (ca.reshape(w[ix.ravel().tolist()], n, M),
-                    ca.reshape(w[iu.ravel().tolist()], m, M))
-
         ws = (self._shift if shift else self._fix_x0)(w_prev, x0)
-        Q = term.node_param_expr(*nodes(ws), theta)
+        Q = term.node_param_expr(*self._nodes(ws), theta)
         P_full = ca.vertcat(p, ca.vec(Q))
         inputs, names = [w_prev, x0, p, theta], ["w_prev", "x0", "p", "theta"]
-        n_w, n_q, d = ocp.n_variables, term.n_node_params(), term.residual.n_outputs
-        w_sym, t_sym, mu_sym = (ca.MX.sym("w", n_w), ca.MX.sym("theta", n_theta),
-                                ca.MX.sym("mu", d, M))
-        gap = term.jacobian_gap_expr(*nodes(w_sym), t_sym, mu_sym)
-        if gap is None:
-            grad_offset = ca.DM.zeros(n_w)
-        else:
-            # mu_k = (dg/dq_k)' lam: the multipliers' weight on node k's learned rates
-            nlp = ocp.nlp
-            lam_sym = ca.MX.sym("lam", nlp["g"].numel())
-            adjoint = ca.Function("rti_param_adjoint", [nlp["x"], nlp["p"], lam_sym],
-                                  [ca.gradient(ca.dot(lam_sym, nlp["g"]), nlp["p"])]).expand()
-            lam_prev = ca.MX.sym("lam_prev", nlp["g"].numel())
-            tail = adjoint(ws, P_full, lam_prev)[P_full.numel() - M * n_q:]
-            mu = ca.reshape(tail, n_q, M)[:d, :]
-            gap_gradient = ca.Function("rti_jacobian_gap", [w_sym, t_sym, mu_sym],
-                                       [ca.gradient(gap, w_sym)])
-            grad_offset = gap_gradient(ws, theta, mu)
+        grad_offset, lam_prev = self._gap_offset(ws, P_full, theta, n_theta)
+        if lam_prev is not None:
             inputs, names = [*inputs, lam_prev], [*names, "lam_prev"]
         out = self._qp_step(ws, P_full, grad_offset)
-        error = term.plan_error_expr(*nodes(out[0]), Q, theta)
+        error = term.plan_error_expr(*self._nodes(out[0]), Q, theta)
         step = ca.Function("rti_learned_step", inputs, [*out, error], names,
                            ["w", "u", "violation", "lam_g", "lam_x", "qp_iterations",
                             "linearization_error"])

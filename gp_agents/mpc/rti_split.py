@@ -55,13 +55,6 @@ class SplitRTIPlanner(RTIPlanner):
         self.n_prepared = self.n_unprepared = 0
 
     # ------------------------------------------------------------------ compiled phases
-    def _nodes(self, w: ca.MX) -> tuple[ca.MX, ca.MX]:
-        ix, iu = self.ocp.node_indices()
-        n, m = self.planning.model.n_states, self.planning.model.n_controls
-        M = ix.shape[0]
-        return (ca.reshape(w[ix.ravel().tolist()], n, M),
-                ca.reshape(w[iu.ravel().tolist()], m, M))
-
     def _prepare_function(self, n_theta: int) -> BufferedFunction:
         """``(w_prev, p[, theta[, lam_prev]]) -> (w_s, h, grad, a, g, P)``: the plan shifted
         with its predicted X(t0), the QP's Hessian and Jacobian nonzeros, gradient and
@@ -98,29 +91,6 @@ class SplitRTIPlanner(RTIPlanner):
             names, ["w_s", "h", "grad", "a", "g", "p_full"]))
         self._prepares[n_theta] = fn
         return fn
-
-    def _gap_offset(self, ws: ca.MX, P_full: ca.MX, theta: ca.MX, n_theta: int
-                    ) -> tuple[Any, ca.MX | None]:
-        """The adjoint correction at ``ws`` for a term with a Jacobian gap (and the symbol of
-        the previous multipliers it reads), or zeros and None."""
-        ocp, term = self.ocp, self.planning.term
-        M, d = ocp.node_indices()[0].shape[0], term.residual.n_outputs
-        n_q = term.n_node_params()
-        w_sym, t_sym, mu_sym = (ca.MX.sym("w", ocp.n_variables), ca.MX.sym("theta", n_theta),
-                                ca.MX.sym("mu", d, M))
-        gap = term.jacobian_gap_expr(*self._nodes(w_sym), t_sym, mu_sym)
-        if gap is None:
-            return ca.DM.zeros(ocp.n_variables), None
-        nlp = ocp.nlp
-        lam_sym = ca.MX.sym("lam", nlp["g"].numel())
-        adjoint = ca.Function("rti_param_adjoint", [nlp["x"], nlp["p"], lam_sym],
-                              [ca.gradient(ca.dot(lam_sym, nlp["g"]), nlp["p"])]).expand()
-        lam_prev = ca.MX.sym("lam_prev", nlp["g"].numel())
-        tail = adjoint(ws, P_full, lam_prev)[P_full.numel() - M * n_q:]
-        mu = ca.reshape(tail, n_q, M)[:d, :]
-        gap_gradient = ca.Function("rti_jacobian_gap", [w_sym, t_sym, mu_sym],
-                                   [ca.gradient(gap, w_sym)])
-        return gap_gradient(ws, theta, mu), lam_prev
 
     def _error_function(self, n_theta: int) -> BufferedFunction:
         """``(w, P, theta) -> error``: the learned term's expansion error at the plan ``w``
