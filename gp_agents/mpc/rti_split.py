@@ -17,10 +17,10 @@ state. Split, as acados does it:
 What changes against the one-call RTI: the linearization point is the predicted, not the
 measured, initial state (the QP's step from it is exact in X(t0)); and the learner update
 with the newest sample happens in the preparation *after* it, so each QP plans with the
-learner as it was one sample earlier. The safety net is the one-call RTI's. A step that was
-not prepared for (the cold start, a plan from a converged solve that replaced a rejected step
-is prepared like any other) or whose measured angles lie a full turn from the prediction
-(:attr:`n_unprepared`) takes the one-call path.
+learner as it was one sample earlier. The safety net is the one-call RTI's. Every plan is
+prepared for, a converged one (cold start, a rejected step's replacement) too; a step that
+was not prepared for, or whose measured angles lie more than half a turn from the
+prediction (counted in :attr:`n_unprepared` when warm), takes the one-call path.
 """
 
 from __future__ import annotations
