@@ -459,7 +459,7 @@ def test_the_exact_ocps_kkt_point_is_a_fixed_point_of_the_learned_rti_step(term)
     node, or frozen per node with the adjoint-corrected gradient, does not move: the same
     OCP's KKT point. The frozen values without the correction (zero multipliers) move away.
     (Repeating the step is no test of convergence: Gauss-Newton SQP on the swing-up drifts
-    away from this KKT point within ~30 steps with either term, from 1e-6 of it.)"""
+    away from this KKT point with either term: seen ad hoc, not asserted.)"""
     env = gym.make(CART, scenario="online")
     data = collect_initial_data(env, 200, seed=0)
     obs, _ = env.reset(seed=0)
@@ -556,7 +556,6 @@ def test_split_rti_closed_loop_records_latency_and_preparation():
     assert agent.planner.n_prepared > 100 and agent.planner.n_unprepared < 5
     assert np.all(d["preparation_time"][1:] > 0) and d["preparation_time"][0] > 0
     assert np.all(d["preparation_time"] < d["act_time"])
-    assert np.all(d["preparation_time"][d["status"] == "reuse"] == 0)
 
 
 def test_rti_tracks_the_converged_mpc_and_its_safety_net_falls_back_to_it():

@@ -52,7 +52,8 @@ from gp_agents.mpc.planner import Plan, Planner
 from gp_agents.mpc.planning_model import PlanningModel
 from gp_agents.pseudospectral import BufferedFunction, OCPSolution
 
-__all__ = ["ACTIVE_SET_PREFIX", "QP_SOLVER_OPTIONS", "RTIPlanner", "resolve_qp_solver"]
+__all__ = ["ACTIVE_SET_PREFIX", "QP_SOLVER_OPTIONS", "STEP_OUTPUTS", "RTIPlanner",
+           "resolve_qp_solver"]
 
 QP_SOLVER_OPTIONS: dict[str, dict[str, Any]] = {
     "osqp": {"osqp": {"verbose": False, "eps_abs": 1e-6, "eps_rel": 1e-6,
@@ -66,6 +67,10 @@ QP_SOLVER_OPTIONS: dict[str, dict[str, Any]] = {
 }
 """QP options per solver: tolerances tight enough that the step is the QP's solution (the
 iteration caps are counts, so the step is deterministic)."""
+
+STEP_OUTPUTS = ("w", "u", "violation", "lam_g", "lam_x", "qp_iterations")
+"""The outputs of a compiled RTI step, in order: the new NLP point, the action, the NLP's
+constraint violation there, the QP's multipliers and the active-set iterations."""
 
 ACTIVE_SET_PREFIX = "active-set:"
 """A QP solver name ``"active-set:<plugin>"`` is :class:`~gp_agents.mpc.active_set.ActiveSetQP`
@@ -135,7 +140,7 @@ class RTIPlanner(Planner):
         nlp = ocp.nlp
         w, P, f, g = nlp["x"], nlp["p"], nlp["f"], nlp["g"]
         n, N, n_w = model.n_states, ocp.n_points, ocp.n_variables
-        lbx, ubx, lbg, ubg = (ca.DM(b) for b in ocp.bounds())
+        lbx, ubx = (ca.DM(b) for b in ocp.bounds()[:2])
         H = ca.hessian(f, w)[0]
         J = ca.jacobian(g, w)
         derivatives = ca.Function("rti_derivatives", [w, P],
@@ -147,7 +152,8 @@ class RTIPlanner(Planner):
         # measured ones, clipped into the bounds, X(t0) the measured state
         w_prev, x0 = ca.MX.sym("w_prev", n_w), ca.MX.sym("x0", n)
         dt = self.mesh.held_periods * model.dt
-        ws = ca.mtimes(ca.DM(ca.sparsify(ca.DM(ocp.shift_operator(dt)))), w_prev)
+        self._shift_matrix = ca.DM(ca.sparsify(ca.DM(ocp.shift_operator(dt))))
+        ws = ca.mtimes(self._shift_matrix, w_prev)
         for i in model.angle_indices:
             turns = ca.floor((x0[i] - ws[i]) / (2 * np.pi) + 0.5)
             mask = np.zeros(n_w)
@@ -169,34 +175,38 @@ class RTIPlanner(Planner):
         w_s, p = ca.MX.sym("w_s", n_w), ca.MX.sym("p", P.numel())
         grad_offset = ca.MX.sym("grad_offset", n_w)
         g0, J0, grad0, H0 = derivatives(w_s, p)
-        lo, hi = ca.vertcat(w_s[:n], lbx[n:]), ca.vertcat(w_s[:n], ubx[n:])
-        data = dict(h=H0, g=grad0 + grad_offset, a=J0, lba=lbg - g0, uba=ubg - g0,
-                    lbx=lo - w_s, ubx=hi - w_s)
-        res, qp_iterations = self._solve_qp(data)
-        w_new = w_s + res["x"]
-        g_new = constraints(w_new, p)
-        violation = ca.mmax(ca.vertcat(ca.fmax(lbg - g_new, 0), ca.fmax(g_new - ubg, 0)))
-        action = w_new[ocp.control_decision(ocp.decision_of_node(0))]
-        outputs = [w_new, action, violation, res["lam_a"], res["lam_x"], qp_iterations]
-        names = ["w", "u", "violation", "lam_g", "lam_x", "qp_iterations"]
+        outputs = self._qp_outputs(w_s, w_s[:n], H0, grad0 + grad_offset, J0, g0, p)
+        names = list(STEP_OUTPUTS)
         qp_step = ca.Function("rti_qp_step", [w_s, p, grad_offset], outputs,
                               ["w_s", "p", "grad_offset"], names)
         step = ca.Function("rti_step", [w_prev, x0, p], qp_step(ws, p, ca.DM.zeros(n_w)),
                            ["w_prev", "x0", "p"], names)
         return shift, qp_step, step
 
-    def _solve_qp(self, data: dict[str, ca.MX]) -> tuple[dict[str, ca.MX], ca.MX]:
-        """The QP ``data`` (conic inputs ``h, g, a, lba, uba, lbx, ubx`` in the step ``dw``)
-        solved symbolically: the result (``x, lam_a, lam_x``) and the active-set iterations
-        (0: it fell back; -1: a plain plugin)."""
+    def _qp_outputs(self, w_s: ca.MX, x0: ca.MX, H: ca.MX, grad: ca.MX, J: ca.MX, g0: ca.MX,
+                    P: ca.MX) -> list[ca.MX]:
+        """The Gauss-Newton QP in the step ``dw`` about ``w_s`` (Hessian ``H``, gradient
+        ``grad``, constraint Jacobian ``J`` and values ``g0`` there, X(t0) fixed to ``x0``),
+        solved symbolically, and what it gives: :data:`STEP_OUTPUTS` (the active-set
+        iterations are 0 when it fell back, -1 for a plain plugin)."""
+        ocp, n = self.ocp, self.planning.model.n_states
+        lbx, ubx, lbg, ubg = (ca.DM(b) for b in ocp.bounds())
+        lo, hi = ca.vertcat(x0, lbx[n:]), ca.vertcat(x0, ubx[n:])
+        data = dict(h=H, g=grad, a=J, lba=lbg - g0, uba=ubg - g0, lbx=lo - w_s, ubx=hi - w_s)
         if isinstance(self.qp_solver, ActiveSetQP):
             # the guess: the bounds the shifted plan sits at, the rows its constraints sit at
             tol = self.qp_solver.tol
             res = self._qp(**data, guess_x=(data["ubx"] <= tol) - (data["lbx"] >= -tol),
                            guess_a=(data["uba"] <= tol) - (data["lba"] >= -tol))
-            return res, res["iterations"]
-        res = self._qp(**data, x0=ca.DM.zeros(data["g"].numel()))
-        return res, ca.MX(-1)
+            iterations = res["iterations"]
+        else:
+            res = self._qp(**data, x0=ca.DM.zeros(ocp.n_variables))
+            iterations = ca.MX(-1)
+        w_new = w_s + res["x"]
+        g_new = self._constraints(w_new, P)
+        violation = ca.mmax(ca.vertcat(ca.fmax(lbg - g_new, 0), ca.fmax(g_new - ubg, 0)))
+        action = w_new[ocp.control_decision(ocp.decision_of_node(0))]
+        return [w_new, action, violation, res["lam_a"], res["lam_x"], iterations]
 
     def _nodes(self, w: ca.MX) -> tuple[ca.MX, ca.MX]:
         """Node states (n, M) and controls (m, M) of the NLP point ``w``."""
@@ -260,8 +270,7 @@ class RTIPlanner(Planner):
         out = self._qp_step(ws, P_full, grad_offset)
         error = term.plan_error_expr(*self._nodes(out[0]), Q, theta)
         step = ca.Function("rti_learned_step", inputs, [*out, error], names,
-                           ["w", "u", "violation", "lam_g", "lam_x", "qp_iterations",
-                            "linearization_error"])
+                           [*STEP_OUTPUTS, "linearization_error"])
         self._learned_steps[n_theta, shift] = BufferedFunction(step)
         return self._learned_steps[n_theta, shift]
 

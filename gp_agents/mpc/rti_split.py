@@ -32,7 +32,7 @@ import casadi as ca
 import numpy as np
 
 from gp_agents.mpc.planner import Plan
-from gp_agents.mpc.rti import RTIPlanner
+from gp_agents.mpc.rti import STEP_OUTPUTS, RTIPlanner
 from gp_agents.pseudospectral import BufferedFunction, OCPSolution
 
 __all__ = ["SplitRTIPlanner"]
@@ -66,8 +66,7 @@ class SplitRTIPlanner(RTIPlanner):
         n, n_w = self.planning.model.n_states, ocp.n_variables
         lbx, ubx = (ca.DM(b) for b in ocp.bounds()[:2])
         w_prev = ca.MX.sym("w_prev", n_w)
-        dt = self.mesh.held_periods * self.planning.model.dt
-        ws = ca.mtimes(ca.DM(ca.sparsify(ca.DM(ocp.shift_operator(dt)))), w_prev)
+        ws = ca.mtimes(self._shift_matrix, w_prev)
         ws = ca.vertcat(ws[:n], ca.fmin(ca.fmax(ws[n:], lbx[n:]), ubx[n:]))
         p_size = ocp.nlp["p"].numel()
         inputs, names = [w_prev], ["w_prev"]
@@ -114,7 +113,6 @@ class SplitRTIPlanner(RTIPlanner):
         the QP from prepared data with X(t0) moved to the measured state."""
         ocp = self.ocp
         n, n_w = self.planning.model.n_states, ocp.n_variables
-        lbx, ubx, lbg, ubg = (ca.DM(b) for b in ocp.bounds())
         w_s = ca.MX.sym("w_s", n_w)
         P = ca.MX.sym("p", ocp.nlp["p"].numel())
         _, J_sym, _, H_sym = self._derivatives(w_s, P)
@@ -123,18 +121,10 @@ class SplitRTIPlanner(RTIPlanner):
         a = ca.MX.sym("a", J_sym.nnz())
         grad, g0 = ca.MX.sym("grad", n_w), ca.MX.sym("g", ocp.nlp["g"].numel())
         H, J = ca.MX(H_sym.sparsity(), h), ca.MX(J_sym.sparsity(), a)
-        lo, hi = ca.vertcat(x0, lbx[n:]), ca.vertcat(x0, ubx[n:])
-        data = dict(h=H, g=grad, a=J, lba=lbg - g0, uba=ubg - g0, lbx=lo - w_s, ubx=hi - w_s)
-        res, qp_iterations = self._solve_qp(data)
-        w_new = w_s + res["x"]
-        g_new = self._constraints(w_new, P)
-        violation = ca.mmax(ca.vertcat(ca.fmax(lbg - g_new, 0), ca.fmax(g_new - ubg, 0)))
-        action = w_new[ocp.control_decision(ocp.decision_of_node(0))]
         return BufferedFunction(ca.Function(
             "rti_feedback", [w_s, x0, h, grad, a, g0, P],
-            [w_new, action, violation, res["lam_a"], res["lam_x"], qp_iterations],
-            ["w_s", "x0", "h", "grad", "a", "g", "p"],
-            ["w", "u", "violation", "lam_g", "lam_x", "qp_iterations"]))
+            self._qp_outputs(w_s, x0, H, grad, J, g0, P),
+            ["w_s", "x0", "h", "grad", "a", "g", "p"], list(STEP_OUTPUTS)))
 
     # ------------------------------------------------------------------ the phases
     def prepare(self, previous: Plan, step: int) -> dict[str, float]:
