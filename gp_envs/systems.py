@@ -69,6 +69,8 @@ class PlanningDefaults:
         qp_solver: the real-time iteration's QP solver: a CasADi ``conic`` plugin name, or
             ``"active-set:<plugin>"`` (the RTI's active-set solve from the shifted plan, that
             plugin as its fallback; ``gp_agents.mpc.rti.resolve_qp_solver``).
+        levenberg_marquardt: the real-time iteration's ``mu`` >= 0 on the QP Hessian's
+            diagonal (``gp_agents.mpc.rti.RTIPlanner``); 0: the plain Gauss-Newton step.
     """
 
     horizon: float
@@ -76,6 +78,7 @@ class PlanningDefaults:
     n_intervals: int = 1
     nodes_per_period: int = 3
     qp_solver: str = "active-set:proxqp"
+    levenberg_marquardt: float = 0.0
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.horizon) and self.horizon > 0):
@@ -86,6 +89,9 @@ class PlanningDefaults:
             if not isinstance(value, (int, np.integer)) or value < 1:
                 raise ValueError(f"PlanningDefaults: {name} must be an integer >= 1, "
                                  f"got {value!r}")
+        if not (np.isfinite(self.levenberg_marquardt) and self.levenberg_marquardt >= 0):
+            raise ValueError(f"PlanningDefaults: levenberg_marquardt must be a finite number "
+                             f">= 0, got {self.levenberg_marquardt!r}")
 
 
 @dataclass(frozen=True)

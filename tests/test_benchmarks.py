@@ -226,3 +226,19 @@ def test_no_preset_schedules_the_same_trial_twice() -> None:
         for exp in get_preset(name).experiments:
             keys = [s.key for s in exp.specs]
             assert len(keys) == len(set(keys)), (name, exp.name)
+
+
+def test_the_levenberg_marquardt_sweep_counts_what_its_episodes_did() -> None:
+    """``benchmarks.rti_levenberg_marquardt``: one row per episode, the RTI steps it counts are
+    the planner's (rejected ones among them), the table has a row per recipe and ``mu``; a
+    negative ``mu`` or an unknown recipe is a usage error."""
+    from benchmarks import rti_levenberg_marquardt as lm
+
+    rows = lm.run("dubins", [0.0, 0.01], [0], ["nominal-mpc-rti"], progress=False)
+    assert [(r["mu"], r["seed"]) for r in rows] == [(0.0, 0), (0.01, 0)]
+    assert all(0 <= r["rejected"] <= r["rti_steps"] and r["rti_steps"] > 100 for r in rows)
+    text = lm.table(rows)
+    assert "| nominal-mpc-rti | 0 |" in text and "| nominal-mpc-rti | 0.01 |" in text
+    for argv in (["--mu", "-0.1"], ["--mu", "x"], ["--recipes", "nominal-mpc"]):
+        with pytest.raises(SystemExit):
+            lm.main(argv)

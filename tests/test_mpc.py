@@ -15,6 +15,7 @@ from gp_agents.data import collect_initial_data
 from gp_agents.learners import IncrementalSSGP
 from gp_agents.mpc import GPInNLP, LinearizedGP, PseudospectralMPC, online_ssgp
 from gp_agents.residual import ResidualModel
+from gp_envs.systems import get_system
 
 CART = "gp_envs/CartPoleSwingUp-v0"
 QUAD = "gp_envs/Quadrotor-v0"
@@ -437,12 +438,14 @@ def test_learner_trained_against_one_nominal_model_is_not_silently_reused_with_a
 
 
 # ------------------------------------------------------------------------ real-time iteration
-def test_a_kkt_point_is_a_fixed_point_of_the_rti_step():
+@pytest.mark.parametrize("mu", [0.0, 0.1], ids=["gauss-newton", "levenberg-marquardt"])
+def test_a_kkt_point_is_a_fixed_point_of_the_rti_step(mu):
     """The Gauss-Newton QP step from a converged plan (no shift) does not move it: dw = 0 at a
-    KKT point, so RTI tracks the converged solution."""
+    KKT point, so RTI tracks the converged solution; a Levenberg-Marquardt term does not
+    change that."""
     env = gym.make(CART, scenario="gp")
     obs, _ = env.reset(seed=0)
-    agent = PseudospectralMPC.from_env(env, scheme="rti")
+    agent = PseudospectralMPC.from_env(env, scheme="rti", levenberg_marquardt=mu)
     agent.act(obs)  # the cold start: a converged solve
     sol, planner = agent.plan.solution, agent.planner
     assert sol.success and sol.status == "Solve_Succeeded"
@@ -450,6 +453,26 @@ def test_a_kkt_point_is_a_fixed_point_of_the_rti_step():
                                            np.zeros(sol.nlp_x.size))
     np.testing.assert_allclose(np.asarray(w).ravel(), sol.nlp_x, atol=1e-5)
     assert float(violation) < 1e-6
+
+
+def test_the_levenberg_marquardt_term_is_mu_on_the_rti_hessians_diagonal():
+    """``levenberg_marquardt=mu``: the QP's Hessian is the objective's plus ``mu I`` (the
+    same point, the same parameters), the Dubins vehicle's registered default reaches its
+    planner, and a negative or non-finite ``mu`` is refused."""
+    env = gym.make(DUBINS)
+    env.reset(seed=0)
+    plain = PseudospectralMPC.from_env(env, scheme="rti", levenberg_marquardt=0.0)._planner()
+    damped = PseudospectralMPC.from_env(env, scheme="rti", levenberg_marquardt=0.25)._planner()
+    w = np.random.default_rng(0).normal(size=plain.ocp.n_variables)
+    p = plain.planning.param_values()
+    H0, H1 = (np.asarray(ca.DM(pl._derivatives(w, p)[3])) for pl in (plain, damped))
+    np.testing.assert_allclose(H1 - H0, 0.25 * np.eye(w.size), atol=1e-12)
+    default = get_system("dubins").planning.levenberg_marquardt
+    assert default > 0 and PseudospectralMPC.from_env(env, scheme="rti-split")._planner() \
+        .levenberg_marquardt == default
+    for bad in (-1e-3, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="levenberg_marquardt"):
+            PseudospectralMPC.from_env(env, scheme="rti", levenberg_marquardt=bad)
 
 
 @pytest.mark.parametrize("term", ["linearized", "zero-order"])

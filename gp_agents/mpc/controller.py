@@ -109,6 +109,9 @@ class PseudospectralMPC:
             ``"active-set:<plugin>"`` or an :class:`~gp_agents.mpc.active_set.ActiveSetQP`
             (:class:`~gp_agents.mpc.rti.RTIPlanner`; default per system, chosen by
             measurement: :func:`~gp_agents.mpc.schedule.planning_defaults`).
+        levenberg_marquardt: the RTI step's ``mu`` >= 0 on the QP Hessian's diagonal
+            (:class:`~gp_agents.mpc.rti.RTIPlanner`; default per system, 0 where none is
+            registered: :func:`~gp_agents.mpc.schedule.planning_defaults`).
         warm_start_duals: a warm IPOPT solve also starts from the previous solve's multipliers
             with IPOPT's warm-start options (:class:`~gp_agents.mpc.planner.Planner`). None: off
             for ``"converged"``, on for the RTI's fallback solves. Measured (``rti`` preset,
@@ -131,6 +134,7 @@ class PseudospectralMPC:
                  obstacle_margin: float = 0.1, jit: bool = False,
                  scheme: Literal["converged", "rti", "rti-split"] = "converged",
                  qp_solver: str | ActiveSetQP | None = None,
+                 levenberg_marquardt: float | None = None,
                  warm_start_duals: bool | None = None) -> None:
         if not isinstance(model, ControlModel):
             raise TypeError(f"model must be a gp_envs ControlModel, got {type(model).__name__}")
@@ -157,6 +161,12 @@ class PseudospectralMPC:
             raise ValueError(f"scheme must be one of {list(SCHEMES)}, got {scheme!r}")
         self.scheme = scheme
         self.qp_solver = qp_solver or (defaults.qp_solver if defaults else "osqp")
+        if levenberg_marquardt is None:
+            levenberg_marquardt = defaults.levenberg_marquardt if defaults else 0.0
+        if not (np.isfinite(levenberg_marquardt) and levenberg_marquardt >= 0):
+            raise ValueError(f"levenberg_marquardt must be a finite number >= 0, got "
+                             f"{levenberg_marquardt}")
+        self.levenberg_marquardt = float(levenberg_marquardt)
         self.warm_start_duals = None if warm_start_duals is None else bool(warm_start_duals)
         if isinstance(learned_dynamics, str):
             if learned_dynamics not in LEARNED_TERMS:
@@ -283,7 +293,8 @@ class PseudospectralMPC:
         planning = self.planner.planning if self.planner is not None else None
         if planning is None or size != planning.n_params - planning.n_nominal:
             planner = SCHEMES[self.scheme]
-            extra: dict[str, Any] = ({"qp_solver": self.qp_solver}
+            extra: dict[str, Any] = ({"qp_solver": self.qp_solver,
+                                      "levenberg_marquardt": self.levenberg_marquardt}
                                      if issubclass(planner, RTIPlanner) else {})
             if self.warm_start_duals is not None:
                 extra["warm_start_duals"] = self.warm_start_duals

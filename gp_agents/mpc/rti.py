@@ -14,7 +14,11 @@ costs are sums of squares of functions that are linear between kinks, so ``H`` i
 semidefinite and the QP convex; the one exception is the soft obstacle margin,
 ``(O_r + B_r + margin - |p - c|)^2`` while the plan is inside it, whose Hessian has a negative
 part from the curvature of ``|p - c|``: there the QP is nonconvex, which is why the Dubins
-vehicle's QP fallback is the interior-point piqp, robust on those steps). The QP is solved
+vehicle's QP fallback is the interior-point piqp, robust on those steps). A
+Levenberg-Marquardt term (``levenberg_marquardt``, ``H + mu I``) is the option for the
+iteration's own weak spots: near ``v = 0`` the Dubins vehicle's heading rate does not act on
+the position, the plain step can then alternate between two plans (turning left, then right)
+and never settle. The QP is solved
 by :class:`~gp_agents.mpc.active_set.ActiveSetQP` from the shifted plan's active set (or by
 a CasADi conic plugin alone, ``qp_solver``). The whole warm
 step (shift, angle alignment, fixing X(t0), the QP, the action) is one compiled CasADi
@@ -110,19 +114,29 @@ class RTIPlanner(Planner):
             system by measurement, :func:`gp_agents.mpc.schedule.planning_defaults`.
         qp_options: CasADi options of the plugin (default :data:`QP_SOLVER_OPTIONS`).
         max_violation: largest constraint violation of an accepted step (see module doc).
+        levenberg_marquardt: ``mu`` >= 0 added to the QP Hessian's diagonal (``H + mu I``, as
+            acados' ``levenberg_marquardt``): it shortens the steps where ``H`` is singular or
+            indefinite and damps an iteration that alternates between two plans; it does not
+            move the fixed points (a KKT point of the OCP is still one, ``dw = 0``). 0 (the
+            default): the plain Gauss-Newton step.
         **settings: the converged solver's settings (:class:`Planner`).
     """
 
     def __init__(self, planning: PlanningModel, mesh: Mesh, constraints: Constraints, *,
                  qp_solver: str | ActiveSetQP = "proxqp",
                  qp_options: Mapping[str, Any] | None = None,
-                 max_violation: float = 1e-2, **settings: Any) -> None:
+                 max_violation: float = 1e-2, levenberg_marquardt: float = 0.0,
+                 **settings: Any) -> None:
         settings.setdefault("warm_start_duals", True)
         super().__init__(planning, mesh, constraints, **settings)
         solver = resolve_qp_solver(qp_solver, qp_options)
         if not (np.isfinite(max_violation) and max_violation > 0):
             raise ValueError(f"max_violation must be > 0, got {max_violation}")
+        if not (np.isfinite(levenberg_marquardt) and levenberg_marquardt >= 0):
+            raise ValueError(f"levenberg_marquardt must be a finite number >= 0, got "
+                             f"{levenberg_marquardt}")
         self.qp_solver, self.max_violation = solver, float(max_violation)
+        self.levenberg_marquardt = float(levenberg_marquardt)
         options: dict[str, Any] = {}
         if isinstance(solver, str):
             options = dict(QP_SOLVER_OPTIONS.get(solver, {}) if qp_options is None
@@ -142,6 +156,8 @@ class RTIPlanner(Planner):
         n, N, n_w = model.n_states, ocp.n_points, ocp.n_variables
         lbx, ubx = (ca.DM(b) for b in ocp.bounds()[:2])
         H = ca.hessian(f, w)[0]
+        if self.levenberg_marquardt > 0:
+            H = H + self.levenberg_marquardt * ca.DM.eye(n_w)
         J = ca.jacobian(g, w)
         derivatives = ca.Function("rti_derivatives", [w, P],
                                   [g, J, ca.gradient(f, w), H]).expand()

@@ -16,8 +16,9 @@ __all__ = ["Episodic", "RecedingHorizon", "planning_defaults"]
 
 def planning_defaults(model: ControlModel) -> PlanningDefaults | None:
     """The registered defaults of ``model``'s system (:class:`gp_envs.systems.PlanningDefaults`:
-    horizon, LG nodes and intervals, nodes per episodic period, the RTI step's QP solver), or
-    None for a model of an unregistered system (then the horizon must be given).
+    horizon, LG nodes and intervals, nodes per episodic period, the RTI step's QP solver and
+    Levenberg-Marquardt term), or None for a model of an unregistered system (then the horizon
+    must be given).
 
     The QP solver defaults were chosen by measurement on tuning seeds 100-102
     (``python -m benchmarks.rti_qp_solvers``, ``benchmarks/results/rti_qp_solvers.md``): the
@@ -30,6 +31,13 @@ def planning_defaults(model: ControlModel) -> PlanningDefaults | None:
     shortest (other systems: their registration). hpipm cannot take the
     pseudospectral NLP's structure (one dense LG interval is no stage-wise OCP); daqp needs a
     positive definite Hessian.
+
+    The RTI's Levenberg-Marquardt term (``python -m benchmarks.rti_levenberg_marquardt``,
+    ``benchmarks/results/rti_levenberg_marquardt.md``, tuning seeds 100-115): 0.01 on the
+    Dubins vehicle, where the plain step of the split SSGP RTI alternates between turning left
+    and right near ``v = 0`` and misses the goal on one seed; 0.01 reaches the goal on all 16
+    seeds with every RTI recipe and cuts the rejected steps, 0.03 loses a nominal episode.
+    Other systems: 0 (not measured).
     """
     name = model.name
     return SYSTEMS[name].planning if name in SYSTEMS else None

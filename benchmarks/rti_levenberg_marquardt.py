@@ -1,0 +1,116 @@
+"""Which Levenberg-Marquardt term the real-time iteration should use, per system (the
+``levenberg_marquardt`` of each system's :class:`gp_envs.systems.PlanningDefaults`).
+
+The RTI recipes (nominal and SSGP, one call and split into preparation and feedback) with
+``levenberg_marquardt=mu`` for each ``mu`` given, on tuning seeds (default 100-115, disjoint
+from every preset's evaluation seeds): episodes at the goal, the RTI steps the safety net
+rejected (each costs a converged solve, and they dominate the median step where they are
+frequent) and the closed-loop cost. Outcomes only: the machine's load changes no number here.
+Run (one core)::
+
+    OMP_NUM_THREADS=1 python -m benchmarks.rti_levenberg_marquardt [--system dubins] \\
+        [--mu 0,0.003,0.01,0.03] [--seeds 100-115] [--out FILE.md]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import numpy as np
+from tqdm import tqdm
+
+import gp_envs
+from benchmarks.cli import parse_seeds
+from benchmarks.controllers import RTI_VARIANTS, build_controller, make_env
+from benchmarks.rti_qp_solvers import SCENARIOS
+from gp_agents.agent import rollout
+
+RECIPES = ("nominal-mpc-rti", "nominal-mpc-rti-split", "ssgp-mpc-rti", "ssgp-mpc-rti-split")
+"""The RTI recipes compared (:data:`benchmarks.controllers.RTI_VARIANTS`)."""
+MUS = (0.0, 0.003, 0.01, 0.03)
+TUNING_SEEDS = tuple(range(100, 116))
+
+
+def run(system: str, mus: list[float], seeds: list[int], recipes: list[str],
+        progress: bool = True) -> list[dict[str, object]]:
+    """One episode per (recipe, mu, seed); returns one row per episode."""
+    rows = []
+    jobs = [(r, mu, s) for r in recipes for mu in mus for s in seeds]
+    for recipe, mu, seed in tqdm(jobs, disable=not progress, desc=f"{system} RTI mu"):
+        env = make_env(system, SCENARIOS[system])
+        built = build_controller(recipe, env, system, seed,
+                                 settings={"levenberg_marquardt": mu})
+        episode = rollout(env, built.agent, seed)
+        planner = built.agent.planner
+        rows.append(dict(recipe=recipe, mu=mu, seed=seed,
+                         success=bool(episode.infos[-1]["success"]), cost=float(episode.cost),
+                         rejected=int(planner.n_rti_rejected), rti_steps=int(planner.n_rti_steps),
+                         contacts=int(sum(bool(i["constraint_violation"])
+                                          for i in episode.infos))))
+    return rows
+
+
+def table(rows: list[dict[str, object]]) -> str:
+    """The Markdown table: one row per (recipe, mu)."""
+    lines = ["| recipe | mu | at the goal | rejected / RTI steps | episodes with a violation | "
+             "mean cost | max cost | missed seeds |",
+             "|---|---:|---:|---:|---:|---:|---:|---|"]
+    keys = list(dict.fromkeys((r["recipe"], r["mu"]) for r in rows))
+    for recipe, mu in keys:
+        group = [r for r in rows if r["recipe"] == recipe and r["mu"] == mu]
+        costs = np.array([r["cost"] for r in group], float)
+        missed = [str(r["seed"]) for r in group if not r["success"]]
+        lines.append(
+            f"| {recipe} | {mu:g} | {sum(bool(r['success']) for r in group)}/{len(group)} | "
+            f"{sum(int(r['rejected']) for r in group)} / "
+            f"{sum(int(r['rti_steps']) for r in group)} | "
+            f"{sum(int(r['contacts']) > 0 for r in group)} | {costs.mean():.2f} | "
+            f"{costs.max():.2f} | {', '.join(missed) or '-'} |")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Print (and with ``--out`` write) the Markdown table."""
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--system", default="dubins", help="a registered system name")
+    parser.add_argument("--mu", default=",".join(f"{m:g}" for m in MUS),
+                        help="comma-separated Levenberg-Marquardt terms, each >= 0")
+    parser.add_argument("--seeds", type=parse_seeds,
+                        default=f"{TUNING_SEEDS[0]}-{TUNING_SEEDS[-1]}",
+                        help="env seeds, 'lo-hi' or comma-separated (default: tuning seeds)")
+    parser.add_argument("--recipes", default=",".join(RECIPES),
+                        help="comma-separated RTI recipes")
+    parser.add_argument("--out", type=Path, help="also write the table (Markdown) here")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    args = parser.parse_args(argv)
+    if args.system not in gp_envs.SYSTEMS or args.system not in SCENARIOS:
+        parser.error(f"unknown system {args.system!r}; choose from {sorted(SCENARIOS)}")
+    try:
+        mus = [float(m) for m in args.mu.split(",") if m]
+    except ValueError as err:
+        parser.error(f"--mu must be comma-separated numbers ({err})")
+    seeds = args.seeds
+    if not mus or not all(np.isfinite(m) and m >= 0 for m in mus):
+        parser.error(f"--mu must be finite numbers >= 0, got {args.mu!r}")
+    recipes = [r for r in args.recipes.split(",") if r]
+    unknown = sorted(set(recipes) - set(RTI_VARIANTS))
+    if unknown or not recipes or not seeds:
+        parser.error(f"unknown or no recipe(s) {unknown} or no seeds; RTI recipes: "
+                     f"{sorted(RTI_VARIANTS)}")
+    rows = run(args.system, mus, seeds, recipes, progress=not args.no_progress)
+    text = (f"# RTI Levenberg-Marquardt term, {args.system}\n\n"
+            f"`python -m benchmarks.rti_levenberg_marquardt --system {args.system} "
+            f"--mu {args.mu} --seeds {','.join(map(str, seeds))}` (tuning seeds; one "
+            f"episode per recipe, mu and seed)\n\n{table(rows)}\n")
+    print(text)
+    if args.out is not None:
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        args.out.write_text(text)
+
+
+if __name__ == "__main__":
+    main()
