@@ -80,8 +80,9 @@ CELLS: dict[str, dict[str, Any]] = {
 
 def _ssgp(forgetting: float = 0.995, linear: bool = False, detect: dict[str, Any] | None = None,
           length_scale: tuple[float, float] = (1.0, 100.0), **bounds: Any) -> Callable[[], Any]:
-    """An ``IncrementalSSGP(50)`` as :func:`gp_agents.online_ssgp` builds it (length scales
-    in [1, 100] standardized units unless ``length_scale`` says otherwise), with the given
+    """An ``IncrementalSSGP(50)`` as :func:`gp_agents.online_ssgp` builds it without linear
+    features (length scales in [1, 100] standardized units unless ``length_scale`` says
+    otherwise; ``online_ssgp(linear_features=True)`` is ``linear-ls5``), with the given
     forgetting factor, linear features, change detector settings
     (:class:`gp_agents.learners.ChangeDetector`) and further bounds."""
     def make() -> Any:

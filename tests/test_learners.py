@@ -794,3 +794,29 @@ def test_save_load_roundtrip_change_detector(tmp_path, data, exact_gp):
     np.testing.assert_array_equal(model.predict(Zt), loaded.predict(Zt))
     with pytest.raises(TypeError, match="ChangeDetector"):
         IncrementalSSGP(12, change_detector="auto").fit(Z, Y)
+
+
+def test_online_ssgp_length_scales_respect_the_recipes_floors():
+    """``online_ssgp``: length scales of at least one input standard deviation, five with
+    linear features; on these noisy data the likelihood wants shorter ones (the one-sigma
+    fit with linear features goes below five), so the floor is what binds."""
+    from gp_agents import online_ssgp
+    from gp_agents.learners import (
+        LENGTH_SCALE_FLOOR,
+        LINEAR_LENGTH_SCALE_FLOOR,
+        HyperparameterBounds,
+    )
+
+    rng = np.random.default_rng(0)
+    Z = rng.normal(size=(200, 6))
+    Z[:, 5] = 1.0 + 1e-5 * rng.normal(size=200)  # an input that hardly varies
+    Y = np.c_[np.sin(Z[:, 0]), 0.5 * Z[:, 1]] + 0.3 * rng.normal(size=(200, 2))
+    plain = online_ssgp(20).fit(Z, Y).hyperparameters_.length_scales
+    linear = online_ssgp(20, linear_features=True).fit(Z, Y).hyperparameters_.length_scales
+    one_sigma = IncrementalSSGP(20, hyperparameters="ssgp", random_state=0,
+                                linear_features=True,
+                                bounds=HyperparameterBounds(length_scale=(1.0, 100.0)))
+    loose = one_sigma.fit(Z, Y).hyperparameters_.length_scales
+    assert plain.min() >= LENGTH_SCALE_FLOOR * (1 - 1e-9)
+    assert linear.min() >= LINEAR_LENGTH_SCALE_FLOOR * (1 - 1e-9)
+    assert loose.min() < LINEAR_LENGTH_SCALE_FLOOR

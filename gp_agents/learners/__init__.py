@@ -13,11 +13,13 @@ from .change import ChangeDetector
 from .exact_gp import ExactGP
 from .hyperparameters import GPHyperparameters, HyperparameterBounds
 from .incremental import IncrementalSSGP
-from .recipes import online_ssgp
+from .recipes import LENGTH_SCALE_FLOOR, LINEAR_LENGTH_SCALE_FLOOR, online_ssgp
 from .ssgp import SSGP
 from .standardization import Standardizer
 
 __all__ = [
+    "LENGTH_SCALE_FLOOR",
+    "LINEAR_LENGTH_SCALE_FLOOR",
     "SSGP",
     "ChangeDetector",
     "ExactGP",
