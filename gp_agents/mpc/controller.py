@@ -36,7 +36,7 @@ from gp_agents.mpc.learned_term import LearnedTerm, NoLearnedTerm
 from gp_agents.mpc.ocp import Constraints
 from gp_agents.mpc.planner import Plan, Planner
 from gp_agents.mpc.planning_model import PlanningModel
-from gp_agents.mpc.rti import RTIPlanner
+from gp_agents.mpc.rti import RTIPlanner, check_levenberg_marquardt
 from gp_agents.mpc.rti_split import SplitRTIPlanner
 from gp_agents.mpc.schedule import Episodic, RecedingHorizon, planning_defaults
 from gp_agents.residual import ResidualModel
@@ -163,10 +163,7 @@ class PseudospectralMPC:
         self.qp_solver = qp_solver or (defaults.qp_solver if defaults else "osqp")
         if levenberg_marquardt is None:
             levenberg_marquardt = defaults.levenberg_marquardt if defaults else 0.0
-        if not (np.isfinite(levenberg_marquardt) and levenberg_marquardt >= 0):
-            raise ValueError(f"levenberg_marquardt must be a finite number >= 0, got "
-                             f"{levenberg_marquardt}")
-        self.levenberg_marquardt = float(levenberg_marquardt)
+        self.levenberg_marquardt = check_levenberg_marquardt(levenberg_marquardt)
         self.warm_start_duals = None if warm_start_duals is None else bool(warm_start_duals)
         if isinstance(learned_dynamics, str):
             if learned_dynamics not in LEARNED_TERMS:

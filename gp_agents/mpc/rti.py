@@ -57,7 +57,7 @@ from gp_agents.mpc.planning_model import PlanningModel
 from gp_agents.pseudospectral import BufferedFunction, OCPSolution
 
 __all__ = ["ACTIVE_SET_PREFIX", "QP_SOLVER_OPTIONS", "STEP_OUTPUTS", "RTIPlanner",
-           "resolve_qp_solver"]
+           "check_levenberg_marquardt", "resolve_qp_solver"]
 
 QP_SOLVER_OPTIONS: dict[str, dict[str, Any]] = {
     "osqp": {"osqp": {"verbose": False, "eps_abs": 1e-6, "eps_rel": 1e-6,
@@ -102,6 +102,18 @@ def resolve_qp_solver(qp_solver: str | ActiveSetQP,
     return name
 
 
+def check_levenberg_marquardt(mu: float) -> float:
+    """``mu`` as a float, checked: the RTI's Levenberg-Marquardt term is finite and >= 0.
+
+    Raises:
+        ValueError: a negative, NaN or infinite ``mu``.
+    """
+    mu = float(mu)
+    if not (np.isfinite(mu) and mu >= 0):
+        raise ValueError(f"levenberg_marquardt must be a finite number >= 0, got {mu}")
+    return mu
+
+
 class RTIPlanner(Planner):
     """A :class:`Planner` that takes one SQP step per period from the shifted previous plan.
 
@@ -132,11 +144,8 @@ class RTIPlanner(Planner):
         solver = resolve_qp_solver(qp_solver, qp_options)
         if not (np.isfinite(max_violation) and max_violation > 0):
             raise ValueError(f"max_violation must be > 0, got {max_violation}")
-        if not (np.isfinite(levenberg_marquardt) and levenberg_marquardt >= 0):
-            raise ValueError(f"levenberg_marquardt must be a finite number >= 0, got "
-                             f"{levenberg_marquardt}")
         self.qp_solver, self.max_violation = solver, float(max_violation)
-        self.levenberg_marquardt = float(levenberg_marquardt)
+        self.levenberg_marquardt = check_levenberg_marquardt(levenberg_marquardt)
         options: dict[str, Any] = {}
         if isinstance(solver, str):
             options = dict(QP_SOLVER_OPTIONS.get(solver, {}) if qp_options is None
