@@ -352,8 +352,8 @@ def robustness(seeds: Sequence[int] = ROBUSTNESS_SEEDS,
                    for n in n_inits for s in env_seeds
                    if n != N_INITIAL_POINTS)  # the default is the fixed-truth cell's trial
     # the kappa cells plan with the GP linearized per node: with the GP and its variance
-    # inside the NLP an episode takes ~5 min here (2 s per step; kappa 1, 50 samples), the
-    # linearized one ~4 s
+    # inside the NLP kappa-1 episodes took 4-5 min each in an ad-hoc look (50 samples, a
+    # loaded machine), the linearized ones ~3.4 s (benchmarks/results/robustness-dubins-kappa)
     kappa_cells = [Cell(randomize=0.1), Cell(noise=ROBUSTNESS_NOISE)]
     specs += tuple(TrialSpec("episode", "dubins", "paper", "ssgp-mpc-linearized", s, n_init=n,
                              cell=Cell(randomize=cell.randomize, noise=cell.noise, kappa=k))
