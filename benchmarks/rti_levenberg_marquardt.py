@@ -38,20 +38,25 @@ TUNING_SEEDS = tuple(range(100, 116))
 def run(system: str, mus: list[float], seeds: list[int], recipes: list[str],
         progress: bool = True) -> list[dict[str, object]]:
     """One episode per (recipe, mu, seed); returns one row per episode."""
-    rows = []
     jobs = [(r, mu, s) for r in recipes for mu in mus for s in seeds]
-    for recipe, mu, seed in tqdm(jobs, disable=not progress, desc=f"{system} RTI mu"):
-        env = make_env(system, SCENARIOS[system])
-        built = build_controller(recipe, env, system, seed,
-                                 settings={"levenberg_marquardt": mu})
-        episode = rollout(env, built.agent, seed)
-        planner = built.agent.planner
-        rows.append(dict(recipe=recipe, mu=mu, seed=seed,
-                         success=bool(episode.infos[-1]["success"]), cost=float(episode.cost),
-                         rejected=int(planner.n_rti_rejected), rti_steps=int(planner.n_rti_steps),
-                         contacts=int(sum(bool(i["constraint_violation"])
-                                          for i in episode.infos))))
-    return rows
+    return [dict(mu=mu, **rti_episode(system, recipe, seed, {"levenberg_marquardt": mu}))
+            for recipe, mu, seed in tqdm(jobs, disable=not progress, desc=f"{system} RTI mu")]
+
+
+def rti_episode(system: str, recipe: str, seed: int,
+                settings: dict[str, object] | None = None) -> dict[str, object]:
+    """One episode of RTI recipe ``recipe`` on ``system``'s RTI scenario with env seed ``seed``
+    (``settings``: extra :class:`gp_agents.PseudospectralMPC` settings): ``recipe``, ``seed``,
+    ``success``, ``cost``, the RTI steps the safety net ``rejected`` of ``rti_steps``, and the
+    steps with a constraint violation (``contacts``)."""
+    env = make_env(system, SCENARIOS[system])
+    built = build_controller(recipe, env, system, seed, settings=settings)
+    episode = rollout(env, built.agent, seed)
+    planner = built.agent.planner
+    return dict(recipe=recipe, seed=seed, success=bool(episode.infos[-1]["success"]),
+                cost=float(episode.cost), rejected=int(planner.n_rti_rejected),
+                rti_steps=int(planner.n_rti_steps),
+                contacts=int(sum(bool(i["constraint_violation"]) for i in episode.infos)))
 
 
 def table(rows: list[dict[str, object]]) -> str:

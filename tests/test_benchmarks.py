@@ -228,6 +228,38 @@ def test_no_preset_schedules_the_same_trial_twice() -> None:
             assert len(keys) == len(set(keys)), (name, exp.name)
 
 
+def test_the_zero_order_gain_ratio_and_its_tables(tmp_path: Path) -> None:
+    """``benchmarks.rti_zero_order``: rho is the documented truth's gain (b = 0.3, the env
+    docstring) over the reset's nominal draw; the band table counts what the rows say; a
+    metrics file without the recipes' Dubins episodes, or no input at all, is a usage error."""
+    from benchmarks import rti_zero_order as zo
+
+    env = make_env("dubins", "paper")
+    for seed in (3, 26):
+        env.reset(seed=seed)
+        nominal = env.unwrapped.nominal_model.params
+        q = zo.gain_ratio(seed)
+        assert q["b1_true"] == q["b2_true"] == pytest.approx(0.3)
+        assert q["rho"] == pytest.approx(max(0.7 / (1 - nominal["b1"]),
+                                             0.7 / (1 - nominal["b2"])))
+    assert zo.gain_ratio(3)["rho"] >= zo.STABLE_RATIO > zo.gain_ratio(26)["rho"]
+    rows = [dict(source="s", recipe=r, seed=seed, success=ok, cost=1.0, contacts=c)
+            for r, seed, ok, c in (("ssgp-mpc-rti-zero-order", 3, False, 2),
+                                   ("ssgp-mpc-rti-zero-order", 26, True, 0),
+                                   ("ssgp-mpc-rti", 3, True, 0), ("ssgp-mpc-rti", 26, True, 0))]
+    text = zo.tables(rows)
+    assert "| s | < 2 | 1 | 1/1 / 0 | 1/1 / 0 |" in text
+    assert "| s | >= 2 | 1 | 0/1 / 1 | 1/1 / 0 |" in text
+    empty = tmp_path / "metrics.csv"
+    empty.write_text("env,controller,seed,success,cost,violations,status\n"
+                     "cartpole,ssgp-mpc-rti,0,True,1.0,0,ok\n")
+    with pytest.raises(ValueError, match="no Dubins episodes"):
+        zo.metrics_rows(empty)
+    for argv in (["--seeds", "none"], ["--seeds", "none", "--metrics", str(empty)]):
+        with pytest.raises(SystemExit):
+            zo.main(argv)
+
+
 def test_the_levenberg_marquardt_sweep_counts_what_its_episodes_did() -> None:
     """``benchmarks.rti_levenberg_marquardt``: one row per episode, the RTI steps it counts are
     the planner's (rejected ones among them), the table has a row per recipe and ``mu``; a

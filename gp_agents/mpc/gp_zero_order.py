@@ -23,6 +23,19 @@ A converged solve with this term (the RTI's cold start and fallbacks, or ``schem
 "converged"``) plans for the frozen values, re-evaluated about its own plan while solves remain
 (:meth:`solves`): a plan consistent with the learned mean but optimal only for the frozen
 model; the RTI steps that follow move it to the optimum of the learned one.
+
+**Where it fails.** The correction fixes where the iteration stops, not whether it gets there:
+the QP steps with the nominal model's Jacobian, so a control acting through a gain (true
+``g``, nominal ``g_nom``) leaves the defect ``(1 - g / g_nom) e`` of a defect ``e``, which
+shrinks only for ``0 < g / g_nom < 2``. A nominal model that believes an actuator more than
+twice as weak as it is makes the iteration overshoot and alternate. On the Dubins vehicle,
+whose learned residual is the actuator loss itself, every episode that failed with this term
+had a gain ratio of at least 2.37, and none below 2 failed (66 seeds: the ``rti`` preset's 50
+and tuning seeds 100-115; ``python -m benchmarks.rti_zero_order``,
+``benchmarks/results/rti_zero_order.md``); the linearized term (the learned Jacobian in the QP)
+reached the goal on all of them. Use it where the nominal model's control gains are within a factor
+of two of the truth (on the cart pole and the quadrotor of the ``rti`` preset it matched the
+linearized term's outcomes), not where the learned term rescales an actuator by more.
 """
 
 from __future__ import annotations
