@@ -29,6 +29,7 @@ import gp_envs
 from benchmarks.controllers import (
     CONTROLLERS,
     N_INITIAL_POINTS,
+    BuiltController,
     ControllerUnavailableError,
     build_controller,
     check_env_scenario,
@@ -173,8 +174,9 @@ def _percentile(x: np.ndarray, q: float) -> float:
     return float(np.percentile(x, q)) if x.size else float("nan")
 
 
-def run_episode(spec: TrialSpec) -> dict[str, Any]:
-    """Run one closed-loop episode; returns ``{"metrics": ..., "arrays": ...}``.
+def build_episode(spec: TrialSpec) -> tuple[Any, BuiltController, dict[str, Any] | None]:
+    """The env, the controller (initial data collected and learned) and the reset options of
+    episode ``spec``, exactly as :func:`run_episode` runs it; the env is reset with the seed.
 
     Raises:
         ControllerUnavailableError: the controller cannot run on this env/scenario.
@@ -182,13 +184,23 @@ def run_episode(spec: TrialSpec) -> dict[str, Any]:
     cell = spec.cell
     env = make_env(spec.env, spec.scenario, randomize=cell.randomize,
                    observation_noise=cell.noise)
-    recipe = CONTROLLERS[spec.controller]
     options = _start_options(env, spec)
-    t_build = time.perf_counter()
     built = build_controller(spec.controller, env, spec.env, spec.seed, spec.n_init,
                              data_env=_data_env(env, spec),
                              settings={"uncertainty_radius": cell.kappa} if cell.kappa else None,
                              options=options)
+    return env, built, options
+
+
+def run_episode(spec: TrialSpec) -> dict[str, Any]:
+    """Run one closed-loop episode; returns ``{"metrics": ..., "arrays": ...}``.
+
+    Raises:
+        ControllerUnavailableError: the controller cannot run on this env/scenario.
+    """
+    recipe = CONTROLLERS[spec.controller]
+    t_build = time.perf_counter()
+    env, built, options = build_episode(spec)
     build_s = time.perf_counter() - t_build
     agent = built.agent
     goal = np.asarray(env.unwrapped.nominal_model.task.goal, float)

@@ -228,6 +228,37 @@ def test_no_preset_schedules_the_same_trial_twice() -> None:
             assert len(keys) == len(set(keys)), (name, exp.name)
 
 
+def test_the_residual_trace_records_what_the_nominal_model_missed() -> None:
+    """``benchmarks.residual_trace``: the step-0 row is the first transition of the benchmark's
+    own episode (a separate build of it: same action, the residual model's target of that
+    transition) with the *pretrained* learner's prediction (taken before it learns the
+    sample); a recipe without a learner, an unknown name or a bad cell is a usage error."""
+    from benchmarks import residual_trace as rt
+    from benchmarks.trial import build_episode
+
+    spec = TrialSpec("episode", "pendulum", "damped", "ssgp-mpc", 0)
+    rows, outputs, inputs = rt.trace(spec, steps=3)
+    env, built, _ = build_episode(spec)
+    action = built.agent.act(built.obs)
+    next_obs = env.step(action)[0]
+    Z, Y = built.agent.residual.targets(built.obs[None], np.asarray(action, float)[None],
+                                        next_obs[None])
+    np.testing.assert_allclose(rows[0]["action"], action)
+    np.testing.assert_allclose(rows[0]["target"], Y[0])
+    np.testing.assert_allclose(rows[0]["predicted"], built.agent.learner.predict(Z)[0])
+    assert [r["step"] for r in rows] == [0, 1, 2] and len(outputs) == len(rows[0]["target"])
+    assert all(np.all(np.isfinite(r["predicted"])) and r["distance"] >= 0 for r in rows)
+    assert all(r["farthest"] in inputs for r in rows)
+    text = rt.format_trace(rows, outputs)
+    assert text.count("\n| d(") == len(outputs)  # one summary row per output
+    with pytest.raises(ValueError, match="learns nothing"):
+        rt.trace(TrialSpec("episode", "pendulum", "damped", "nominal-mpc", 0), steps=1)
+    for argv in (["--controller", "nominal-mpc", "--env", "pendulum"], ["--env", "nope"],
+                 ["--env", "pendulum", "--data", "other"], ["--env", "pendulum", "--steps", "0"]):
+        with pytest.raises(SystemExit):
+            rt.main(argv)
+
+
 def test_the_zero_order_gain_ratio_and_its_tables(tmp_path: Path) -> None:
     """``benchmarks.rti_zero_order``: rho is the documented truth's gain (b = 0.3, the env
     docstring) over the reset's nominal draw; the band table counts what the rows say; a
