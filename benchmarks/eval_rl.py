@@ -35,6 +35,7 @@ import matplotlib.pyplot as plt
 from matplotlib.ticker import FormatStrFormatter, FuncFormatter, SymmetricalLogLocator
 
 import gp_envs  # noqa: F401  (registers the envs)
+from benchmarks.report import mean_ci, wilson_ci
 from gp_agents.rl import METADATA_FILE, RLAgent, rollout
 
 HERE = Path(__file__).resolve().parent
@@ -78,7 +79,11 @@ def evaluate(model_dir: Path, seeds: range = SEEDS) -> tuple[dict[str, Any], lis
         "train_time_s": agent.train_time_s,
         "episodes": len(episodes),
         "success_rate": float(np.mean([e["success"] for e in episodes])),
+        **dict(zip(("success_ci_low", "success_ci_high"),
+                   wilson_ci(int(sum(bool(e["success"]) for e in episodes)), len(episodes)),
+                   strict=True)),
         "mean_return": float(rets.mean()),
+        **dict(zip(("return_ci_low", "return_ci_high"), mean_ci(rets.tolist()), strict=True)),
         "std_return": float(rets.std()),
         "mean_length": float(np.mean([e["length"] for e in episodes])),
         "success_any_rate": float(np.mean([e["success_any"] for e in episodes])),
@@ -134,18 +139,23 @@ def write_markdown(rows: list[dict[str, Any]], path: Path) -> None:
         "(reset seeds 0..19) with its deterministic policy in the plain loop; success is "
         "`info[\"is_success\"]` at the last step (goal tolerance held for the task's hold time). "
         "Training time is wall clock on a shared 2-core machine, learning-curve evaluations "
-        "included.",
+        "included. Intervals (95%) are over the 20 episodes of the one shipped policy (Wilson "
+        "for the success rate, bootstrap BCa of the mean return): they say how well 20 "
+        "episodes pin down that policy, not how much another training seed would differ (the "
+        "spread over training seeds is in `summary.md`).",
         "",
         "| env | scenario | algo | seed | env steps trained | training time (s) | success rate "
-        "| mean return | std return | mean length | success at some step | final distance to "
-        "goal | episode ends |",
+        "[95% CI] | mean return [95% CI] | std return | mean length | success at some step | "
+        "final distance to goal | episode ends |",
         "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|",
     ]
     for r in rows:
         lines.append(
             f"| {r['env_id']} | {r['scenario']} | {r['algo'].upper()} | {r['seed']} | "
-            f"{r['training_steps']} | {r['train_time_s']:.0f} | {r['success_rate']:.2f} | "
-            f"{r['mean_return']:.1f} | {r['std_return']:.1f} | {r['mean_length']:.1f} | "
+            f"{r['training_steps']} | {r['train_time_s']:.0f} | {r['success_rate']:.2f} "
+            f"[{r['success_ci_low']:.2f}, {r['success_ci_high']:.2f}] | {r['mean_return']:.1f} "
+            f"[{r['return_ci_low']:.1f}, {r['return_ci_high']:.1f}] | {r['std_return']:.1f} | "
+            f"{r['mean_length']:.1f} | "
             f"{r['success_any_rate']:.2f} | {r['mean_final_distance']:.3f} | {r['ends']} |")
     lines += ["", "*success at some step*: fraction of episodes in which the goal tolerance was "
               "held for the hold time at some point (the success rate counts the last step). "

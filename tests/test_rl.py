@@ -477,3 +477,51 @@ def test_summary_from_tiny_runs(sac_runs: dict, tmp_path: Path,
     # the two copies are the same policy: the same episodes
     assert [r["cost"] for r in rows[:20]] == [r["cost"] for r in rows[20:]]
     assert (tmp_path / "out" / "tiny_curves.png").stat().st_size > 10_000
+
+
+def test_ship_copies_the_seed_with_the_lowest_last_training_cost(tmp_path: Path) -> None:
+    """``benchmarks.rl_ship``: of a finished plan, the seed whose *last* training evaluation
+    is cheapest (not its best one) is copied, files byte for byte, with ``shipped_from`` in its
+    metadata; a plan with an unfinished seed is refused."""
+    from benchmarks.rl_runs import Plan
+    from benchmarks.rl_ship import select_seed, ship
+
+    plan = Plan(env="cartpole", scenario="online", algo="sac", hyperparams="sac-swingup",
+                steps=100, seeds=(0, 1, 2), root=tmp_path / "runs")
+    costs = {0: [50.0, 12.0, 30.0], 1: [40.0, 20.0], 2: [60.0, 25.0]}  # last: 30, 20, 25
+    for seed, curve in costs.items():
+        d = plan.run_dir("p", seed)
+        d.mkdir(parents=True)
+        (d / "metadata.json").write_text(json.dumps({"training_steps": 100, "seed": seed}))
+        with open(d / "learning_curve.csv", "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["timesteps", "mean_cost"])
+            w.writerows([[10 * i, c] for i, c in enumerate(curve)])
+        (d / "model.zip").write_bytes(bytes([seed]) * 7)
+        (d / "vecnormalize.pkl").write_bytes(bytes([seed + 10]) * 5)
+    assert select_seed({0: 30.0, 1: 20.0, 2: 20.0}) == 1
+    with pytest.raises(ValueError):
+        select_seed({})
+    record = ship("p", plan, models=tmp_path / "models")
+    dest = tmp_path / "models" / "cartpole" / "sac"
+    assert record["seed"] == 1 and record["last_training_eval_cost"] == {
+        "0": 30.0, "1": 20.0, "2": 25.0}
+    assert (dest / "model.zip").read_bytes() == bytes([1]) * 7
+    assert (dest / "vecnormalize.pkl").read_bytes() == bytes([11]) * 5
+    meta = json.loads((dest / "metadata.json").read_text())
+    assert meta["seed"] == 1 and meta["shipped_from"]["plan"] == "p"
+    (plan.run_dir("p", 2) / "metadata.json").unlink()
+    with pytest.raises(ValueError, match="unfinished seeds \\[2\\]"):
+        ship("p", plan, models=tmp_path / "models2")
+
+
+def test_eval_rl_rows_carry_intervals_over_the_episodes() -> None:
+    """``benchmarks.eval_rl.evaluate``: the Wilson interval of the success rate and the
+    bootstrap interval of the mean return contain their estimates (the shipped cart-pole SAC,
+    5 episodes)."""
+    from benchmarks.eval_rl import evaluate
+
+    row, episodes = evaluate(MODELS / "cartpole" / "sac", seeds=range(5))
+    assert len(episodes) == 5 and row["episodes"] == 5
+    assert 0.0 <= row["success_ci_low"] <= row["success_rate"] <= row["success_ci_high"] <= 1.0
+    assert row["return_ci_low"] <= row["mean_return"] <= row["return_ci_high"]
