@@ -77,6 +77,14 @@ def parse_seeds(text: str) -> list[int]:
     return list(dict.fromkeys(seeds))
 
 
+def print_report(text: str, out: Path | None = None) -> None:
+    """Print a tool's Markdown ``text`` and, with ``out``, also write it there (parents made)."""
+    print(text)
+    if out is not None:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(text)
+
+
 def _number(kind: type[int] | type[float], minimum: float, what: str
             ) -> Callable[[str], int | float]:
     """An argparse ``type``: ``kind(text)``, at least ``minimum`` (``what`` describes it)."""

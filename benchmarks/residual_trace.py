@@ -26,6 +26,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np
 
+from benchmarks.cli import print_report
 from benchmarks.controllers import CONTROLLERS, ENVS, check_env_scenario, check_name
 from benchmarks.trial import Cell, TrialSpec, build_episode
 
@@ -138,10 +139,7 @@ def main(argv: list[str] | None = None) -> None:
     text = (f"# Residual trace: {args.controller}, {args.env} `{scenario}`, "
             f"{cell.describe()}, seed {args.seed}\n\n`{command.strip()}`\n\n"
             f"{format_trace(rows, outputs, show)}\n")
-    print(text)
-    if args.out is not None:
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(text)
+    print_report(text, args.out)
 
 
 if __name__ == "__main__":

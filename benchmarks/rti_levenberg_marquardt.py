@@ -24,7 +24,7 @@ import numpy as np
 from tqdm import tqdm
 
 import gp_envs
-from benchmarks.cli import parse_seeds
+from benchmarks.cli import parse_seeds, print_report
 from benchmarks.controllers import RTI_VARIANTS, build_controller, make_env
 from benchmarks.rti_qp_solvers import SCENARIOS
 from gp_agents.agent import rollout
@@ -111,10 +111,7 @@ def main(argv: list[str] | None = None) -> None:
             f"`python -m benchmarks.rti_levenberg_marquardt --system {args.system} "
             f"--mu {args.mu} --seeds {','.join(map(str, seeds))}` (tuning seeds; one "
             f"episode per recipe, mu and seed)\n\n{table(rows)}\n")
-    print(text)
-    if args.out is not None:
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(text)
+    print_report(text, args.out)
 
 
 if __name__ == "__main__":

@@ -36,7 +36,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 from tqdm import tqdm
 
 import gp_envs
-from benchmarks.cli import parse_seeds
+from benchmarks.cli import parse_seeds, print_report
 from benchmarks.controllers import make_env
 from benchmarks.rti_levenberg_marquardt import TUNING_SEEDS, rti_episode
 
@@ -160,10 +160,7 @@ def main(argv: list[str] | None = None) -> None:
             f"of (1 - b_true) / (1 - b_nominal): the true control gain over the one in the "
             f"zero-order QP (see the module docstring for why {STABLE_RATIO:g} is the "
             f"threshold).\n\n{tables(rows)}\n")
-    print(text)
-    if args.out is not None:
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(text)
+    print_report(text, args.out)
 
 
 if __name__ == "__main__":
