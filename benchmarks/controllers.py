@@ -27,7 +27,9 @@ Variants with an explicit parametric part of the residual (:data:`SENSITIVITY_VA
 sensitivities, ``sensitivities=True``, and has linear features) and
 ``ssgp-mpc-linearized-sensitivities``; and ``ssgp-mpc-adaptive`` / ``ssgp-mpc-linearized-adaptive``,
 whose learner also restarts when it detects that the system changed
-(:class:`gp_agents.learners.ChangeDetector`).
+(:class:`gp_agents.learners.ChangeDetector`); ``ssgp-mpc-linearized-guarded``, the latter with
+the residual switched off while it predicts worse than the nominal model
+(:class:`gp_agents.learners.NominalFallback`).
 
 Real-time-iteration variants (:data:`RTI_VARIANTS`, preset ``rti``): ``nominal-mpc-rti``,
 ``oracle-mpc-rti``, ``ssgp-mpc-rti`` (``scheme="rti"``; the SSGP one with the GP linearized),
@@ -205,6 +207,11 @@ SENSITIVITY_VARIANTS: dict[str, ControllerRecipe] = dict([
                   "ssgp-mpc-adaptive planning with the GP residual linearized per node "
                   "(learned_dynamics='linearized')", learner="ssgp-adaptive",
                   sensitivities=True, learned_dynamics="linearized"),
+    _ssgp_variant("linearized-guarded", "linearized, guarded",
+                  "ssgp-mpc-linearized-adaptive whose residual is switched off while it "
+                  "predicts the newest samples worse than the nominal model "
+                  "(online_ssgp(..., nominal_fallback=NominalFallback()))",
+                  learner="ssgp-guarded", sensitivities=True, learned_dynamics="linearized"),
 ])
 """Variants of ``ssgp-mpc`` whose residual has an explicit parametric part (issue: online
 learning across the envelope), compared by the ``robustness`` preset."""
@@ -334,10 +341,11 @@ class OracleModel:
 
 def make_learner(kind: str) -> Any:
     """A fresh residual learner of the recipe kind ``"exact"``, ``"ssgp"``, ``"ssgp-linear"``
-    (:func:`gp_agents.online_ssgp` with linear features) or ``"ssgp-adaptive"`` (linear
-    features and a :class:`~gp_agents.learners.ChangeDetector`)."""
+    (:func:`gp_agents.online_ssgp` with linear features), ``"ssgp-adaptive"`` (linear
+    features and a :class:`~gp_agents.learners.ChangeDetector`) or ``"ssgp-guarded"`` (those
+    and a :class:`~gp_agents.learners.NominalFallback`)."""
     from gp_agents import online_ssgp
-    from gp_agents.learners import ChangeDetector, ExactGP
+    from gp_agents.learners import ChangeDetector, ExactGP, NominalFallback
 
     if kind == "exact":
         return ExactGP()
@@ -347,6 +355,9 @@ def make_learner(kind: str) -> Any:
         return online_ssgp(linear_features=True)
     if kind == "ssgp-adaptive":
         return online_ssgp(linear_features=True, change_detector=ChangeDetector())
+    if kind == "ssgp-guarded":
+        return online_ssgp(linear_features=True, change_detector=ChangeDetector(),
+                           nominal_fallback=NominalFallback())
     raise ValueError(f"unknown learner kind {kind!r}")
 
 

@@ -17,6 +17,7 @@ from gp_agents.learners import (
     ExactGP,
     GPHyperparameters,
     IncrementalSSGP,
+    NominalFallback,
     NotFittedError,
 )
 from gp_agents.learners.cholesky_update import cholesky_add_rows, positive_diagonal, solve_upper
@@ -794,6 +795,76 @@ def test_save_load_roundtrip_change_detector(tmp_path, data, exact_gp):
     np.testing.assert_array_equal(model.predict(Zt), loaded.predict(Zt))
     with pytest.raises(TypeError, match="ChangeDetector"):
         IncrementalSSGP(12, change_detector="auto").fit(Z, Y)
+
+
+def test_nominal_fallback_averages_squared_errors():
+    """``NominalFallback.step``: exponential averages of the summed squared errors (hand
+    computed), on while the learner's is at most zero's; bad settings and inputs raise."""
+    fb = NominalFallback(memory=0.5)
+    fb.reset()
+    assert fb.on_ and fb.step([3.0, 0.0], [1.0, 1.0]) is False  # 9 > 2
+    assert (fb.learned_error_, fb.zero_error_) == (9.0, 2.0)
+    assert fb.step([0.0, 0.0], [4.0, 0.0]) is True  # 0.5 * 9 + 0.5 * 0 <= 0.5 * 2 + 0.5 * 16
+    assert (fb.learned_error_, fb.zero_error_) == (4.5, 9.0) and fb.on_ is True
+    assert NominalFallback(0.0).clone().get_params() == {"memory": 0.0}
+    for bad in (-0.1, 1.0, float("nan")):
+        with pytest.raises(ValueError, match="memory"):
+            NominalFallback(bad).reset()
+    with pytest.raises(ValueError, match="finite"):
+        fb.step([1.0], [1.0, 2.0])
+    with pytest.raises(ValueError, match="finite"):
+        fb.step([np.nan, 0.0], [1.0, 2.0])
+
+
+def test_nominal_fallback_switches_the_residual_off_and_keeps_learning(data, exact_gp):
+    """A learner fitted on one function, then fed samples of the *negated* one (the system
+    changed: the old model is worse than none): the residual goes off, so predict, its
+    gradient and the CasADi mean are zero, the variance is unchanged; the state is exactly the
+    plain learner's (learning went on); fed more of the new function it comes back on and then
+    predicts exactly as the plain learner."""
+    Z, Y, Zt, _ = data
+    kw = dict(forgetting_factor=0.9, hyperparameters=exact_gp, random_state=3)
+    model = IncrementalSSGP(15, nominal_fallback=NominalFallback(), **kw).fit(Z[:60], Y[:60])
+    plain = IncrementalSSGP(15, **kw).fit(Z[:60], Y[:60])
+    assert model.residual_on_
+    np.testing.assert_array_equal(model.predict(Zt), plain.predict(Zt))
+    off_at = None
+    for i in range(60, 120):
+        model.update(Z[i:i + 1], -Y[i:i + 1])
+        plain.update(Z[i:i + 1], -Y[i:i + 1])
+        if off_at is None and not model.residual_on_:
+            off_at = i
+            mean, std = model.predict(Zt, return_std=True)
+            assert np.all(mean == 0.0) and np.all(model.predict_gradient(Zt) == 0.0)
+            np.testing.assert_allclose(std, plain.predict(Zt, return_std=True)[1], rtol=1e-12)
+            z = ca.MX.sym("z", 3)
+            theta = model.casadi_param_values()
+            f = ca.Function("f", [z], [model.casadi_mean(z, ca.DM(theta))])
+            assert np.all(np.asarray(f(Zt[0])) == 0.0)
+            np.testing.assert_array_equal(model.weights_, plain.weights_)
+        if off_at is not None and model.residual_on_:
+            break
+    assert off_at == 60  # the first negated sample already shows the old model is worse
+    assert model.residual_on_, "never came back on after learning the new function"
+    np.testing.assert_array_equal(model.predict(Zt), plain.predict(Zt))
+    z = ca.MX.sym("z", 3)
+    f = ca.Function("f", [z], [model.casadi_mean(z, ca.DM(model.casadi_param_values()))])
+    np.testing.assert_allclose(np.asarray(f(Zt[0])).ravel(), plain.predict(Zt[:1])[0],
+                               rtol=1e-9, atol=1e-9)
+
+
+def test_save_load_roundtrip_nominal_fallback(tmp_path, data, exact_gp):
+    Z, Y, Zt, _ = data
+    model = IncrementalSSGP(12, hyperparameters=exact_gp, random_state=5,
+                            nominal_fallback=NominalFallback(memory=0.6)).fit(Z[:60], Y[:60])
+    model.update(Z[60:80], Y[60:80])
+    path = tmp_path / "ssgp_fallback.npz"
+    model.save(path)
+    loaded = IncrementalSSGP.load(path)
+    assert loaded.nominal_fallback.get_params() == {"memory": 0.6} and loaded.residual_on_
+    np.testing.assert_array_equal(model.predict(Zt), loaded.predict(Zt))
+    with pytest.raises(TypeError, match="NominalFallback"):
+        IncrementalSSGP(12, nominal_fallback="auto").fit(Z, Y)
 
 
 def test_online_ssgp_length_scales_respect_the_recipes_floors():

@@ -11,6 +11,7 @@ learning". Three learners with a scikit-learn-like API and a common CasADi expor
 from ._validation import NotFittedError
 from .change import ChangeDetector
 from .exact_gp import ExactGP
+from .fallback import NominalFallback
 from .hyperparameters import GPHyperparameters, HyperparameterBounds
 from .incremental import IncrementalSSGP
 from .recipes import LENGTH_SCALE_FLOOR, LINEAR_LENGTH_SCALE_FLOOR, online_ssgp
@@ -26,6 +27,7 @@ __all__ = [
     "GPHyperparameters",
     "HyperparameterBounds",
     "IncrementalSSGP",
+    "NominalFallback",
     "NotFittedError",
     "Standardizer",
     "online_ssgp",

@@ -44,6 +44,13 @@ formula from the run of samples that declared it alone (``n`` restarts at the ru
 :meth:`IncrementalSSGP.fit` the detector's history is seeded with the leave-one-out errors of
 the last fitted samples, ``(y_i - mean_i) / (1 - h_i)`` with ``h_i = lambda^(n-i) phi_i^T
 A^{-1} phi_i`` (the exact leave-one-out error of the weighted Bayesian linear regression).
+
+*Nominal fallback* (``nominal_fallback=NominalFallback()``, :mod:`gp_agents.learners.fallback`):
+samples likewise go in one at a time, each after its one-step error and the zero residual's went
+to the fallback; while the fallback is off (the learner predicts the newest samples worse than
+zero) :meth:`~IncrementalSSGP.predict` and :meth:`~IncrementalSSGP.predict_gradient` return a
+zero mean and gradient and the CasADi parameters carry zero weights and output offsets, so
+``casadi_mean`` is zero too; the variance and the learning are unchanged.
 """
 
 from __future__ import annotations
@@ -57,6 +64,7 @@ from scipy.linalg import cholesky
 from ._validation import check_training_data
 from .change import ChangeDetector
 from .cholesky_update import cholesky_add_rows
+from .fallback import NominalFallback
 from .hyperparameters import GPHyperparameters, HyperparameterBounds
 from .ssgp import SSGP, HyperparameterSource
 from .standardization import Standardizer
@@ -101,6 +109,9 @@ class IncrementalSSGP(SSGP):
         change_detector: a :class:`ChangeDetector` (copied at :meth:`fit`), or None: restart
             from the new regime's samples when the learned function changes (module
             docstring).
+        nominal_fallback: a :class:`NominalFallback` (copied at :meth:`fit`), or None: switch
+            the residual off while it predicts the newest samples worse than zero (module
+            docstring; :attr:`residual_on_`).
 
     Fitted attributes: those of :class:`SSGP`, with ``n_samples_seen_`` counting every sample
     since :meth:`fit` (initial batch included), ``n_state_samples_`` those in the current
@@ -123,6 +134,7 @@ class IncrementalSSGP(SSGP):
         linear_features: bool = False,
         linear_std: float = 1.0,
         change_detector: ChangeDetector | None = None,
+        nominal_fallback: NominalFallback | None = None,
     ) -> None:
         super().__init__(
             n_frequencies,
@@ -139,6 +151,7 @@ class IncrementalSSGP(SSGP):
         self.forgetting_factor = forgetting_factor
         self.prior_refresh = prior_refresh
         self.change_detector = change_detector
+        self.nominal_fallback = nominal_fallback
 
     def _check_config(self) -> tuple[float, int]:
         lam = float(self.forgetting_factor)
@@ -159,6 +172,10 @@ class IncrementalSSGP(SSGP):
                                                                 ChangeDetector):
             raise TypeError("change_detector must be a ChangeDetector or None, got "
                             f"{type(self.change_detector).__name__}")
+        if self.nominal_fallback is not None and not isinstance(self.nominal_fallback,
+                                                                NominalFallback):
+            raise TypeError("nominal_fallback must be a NominalFallback or None, got "
+                            f"{type(self.nominal_fallback).__name__}")
         super().fit(Z, Y)
         self._reset_detector()
         if self.detector_ is not None:  # typical errors of this system (change.py)
@@ -180,6 +197,10 @@ class IncrementalSSGP(SSGP):
         return (Ys - mean) / np.maximum(1.0 - h, 1e-12)
 
     def _reset_detector(self) -> None:
+        self.fallback_: NominalFallback | None = None
+        if self.nominal_fallback is not None:
+            self.fallback_ = self.nominal_fallback.clone()
+            self.fallback_.reset()
         self.n_changes_ = 0
         self.detector_: ChangeDetector | None = None
         if self.change_detector is not None:
@@ -220,14 +241,51 @@ class IncrementalSSGP(SSGP):
         std = self.standardizer_
         assert std is not None
         Zs, Ys = std.transform_inputs(Z), std.transform_outputs(Y)
-        if getattr(self, "detector_", None) is None:
+        detector, fallback = getattr(self, "detector_", None), getattr(self, "fallback_", None)
+        if detector is None and fallback is None:
             self._add(Zs, Ys)
             return self
+        zero = std.y_mean / std.y_std  # standardized error of the zero residual: ys + this
         for zs, ys in zip(Zs, Ys, strict=True):
             error = ys - self._predict_std(zs[None], return_var=False)[0][0]
+            if fallback is not None:
+                fallback.step(error, ys + zero)
             self._add(zs[None], ys[None])
-            self._detect(zs, ys, error)
+            if detector is not None:
+                self._detect(zs, ys, error)
         return self
+
+    # ------------------------------------------------------------------ nominal fallback
+    @property
+    def residual_on_(self) -> bool:
+        """Whether the learned residual is used (always, without a nominal fallback)."""
+        fallback = getattr(self, "fallback_", None)
+        return True if fallback is None else bool(fallback.on_)
+
+    def predict(self, Z: np.ndarray, return_std: bool = False
+                ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+        """As :meth:`SSGP.predict`; a zero mean while the residual is off (module docstring)."""
+        out = super().predict(Z, return_std=return_std)
+        if self.residual_on_:
+            return out
+        return (np.zeros_like(out[0]), out[1]) if return_std else np.zeros_like(out)
+
+    def predict_gradient(self, Z: np.ndarray) -> np.ndarray:
+        """As :meth:`SSGP.predict_gradient`; zero while the residual is off."""
+        G = super().predict_gradient(Z)
+        return G if self.residual_on_ else np.zeros_like(G)
+
+    def _standardizer_blocks(self) -> list[tuple[str, np.ndarray]]:
+        blocks = super()._standardizer_blocks()
+        if self.residual_on_:
+            return blocks
+        return [(n, np.zeros_like(v) if n == "y_mean" else v) for n, v in blocks]
+
+    def _casadi_blocks(self, variance: bool = True) -> list[tuple[str, np.ndarray]]:
+        blocks = super()._casadi_blocks(variance)
+        if self.residual_on_:
+            return blocks
+        return [(n, np.zeros_like(v) if n.startswith("w_") else v) for n, v in blocks]
 
     def _detect(self, zs: np.ndarray, ys: np.ndarray, error: np.ndarray) -> None:
         """Pass one sample's error to the detector; on a change rebuild the state from the run
@@ -305,8 +363,8 @@ class IncrementalSSGP(SSGP):
     # ------------------------------------------------------------------ persistence
     def save(self, path: str | os.PathLike[str]) -> None:
         """Write the full learner state (settings and fitted state) to an ``.npz`` file. A
-        change detector's settings are written, not its error history: a loaded learner's
-        detector starts afresh."""
+        change detector's and a nominal fallback's settings are written, not their error
+        histories: a loaded learner's start afresh (the residual on)."""
         self._check_fitted()
         std, hyp = self.standardizer_, self.hyperparameters_
         assert std is not None and hyp is not None
@@ -322,6 +380,8 @@ class IncrementalSSGP(SSGP):
             "n_state_samples": np.array(int(self.n_state_samples_)),
             "change_detector": (np.zeros(0) if self.change_detector is None else np.array(
                 [float(v) for v in self.change_detector.get_params().values()])),
+            "nominal_fallback": (np.zeros(0) if self.nominal_fallback is None else np.array(
+                [float(self.nominal_fallback.memory)])),
             "n_changes": np.array(int(getattr(self, "n_changes_", 0))),
             "base_frequencies": self.base_frequencies_,
             "linear_std": (np.zeros(0) if self.linear_std_ is None else self.linear_std_),
@@ -362,6 +422,9 @@ class IncrementalSSGP(SSGP):
         if detector.size:
             ratio, patience, history = detector
             obj.change_detector = ChangeDetector(float(ratio), int(patience), int(history))
+        fallback = np.asarray(data.get("nominal_fallback", np.zeros(0)), dtype=float)
+        if fallback.size:
+            obj.nominal_fallback = NominalFallback(float(fallback[0]))
         obj._reset_detector()
         obj.n_changes_ = int(data.get("n_changes", 0))
         return obj

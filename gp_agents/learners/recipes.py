@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from .change import ChangeDetector
+from .fallback import NominalFallback
 from .hyperparameters import HyperparameterBounds
 from .incremental import IncrementalSSGP
 
@@ -17,7 +18,8 @@ LINEAR_LENGTH_SCALE_FLOOR = 5.0
 
 def online_ssgp(n_frequencies: int = 50, forgetting_factor: float = 0.995,
                 random_state: int | None = 0, linear_features: bool = False,
-                change_detector: ChangeDetector | None = None) -> IncrementalSSGP:
+                change_detector: ChangeDetector | None = None,
+                nominal_fallback: NominalFallback | None = None) -> IncrementalSSGP:
     """The online learner of the paper's Algorithm 1, as this project's benchmarks use it.
 
     An :class:`~gp_agents.learners.IncrementalSSGP` whose hyperparameters come from the SSGP's
@@ -45,10 +47,13 @@ def online_ssgp(n_frequencies: int = 50, forgetting_factor: float = 0.995,
             explicit parametric part (:mod:`gp_agents.residual`).
         change_detector: restart from the new regime's samples when the system changes
             (:class:`~gp_agents.learners.ChangeDetector`).
+        nominal_fallback: switch the residual off while it predicts the newest samples worse
+            than zero, i.e. than the nominal model (:class:`~gp_agents.learners.NominalFallback`).
     """
     return IncrementalSSGP(n_frequencies, forgetting_factor=forgetting_factor,
                            hyperparameters="ssgp", random_state=random_state,
                            linear_features=linear_features, change_detector=change_detector,
+                           nominal_fallback=nominal_fallback,
                            bounds=HyperparameterBounds(
                                length_scale=(LINEAR_LENGTH_SCALE_FLOOR if linear_features
                                              else LENGTH_SCALE_FLOOR, 100.0)))
