@@ -75,6 +75,7 @@ _SSGP_SENSITIVITIES = "#F0E442"  # yellow
 _SSGP_LINEARIZED_SENSITIVITIES = "#17BECF"  # cyan
 _SSGP_ADAPTIVE = "#2CA02C"  # green
 _SSGP_LINEARIZED_ADAPTIVE = "#7F7F7F"  # grey
+_SSGP_LINEARIZED_GUARDED = "#D62728"  # red
 _SAC = "#9467BD"  # purple
 _PPO = "#BCBD22"  # olive
 
@@ -100,6 +101,7 @@ STYLES: dict[str, Style] = {
     "ssgp-mpc-linearized-sensitivities": Style(_SSGP_LINEARIZED_SENSITIVITIES, RECEDING, "2"),
     "ssgp-mpc-adaptive": Style(_SSGP_ADAPTIVE, RECEDING, "$a$"),
     "ssgp-mpc-linearized-adaptive": Style(_SSGP_LINEARIZED_ADAPTIVE, RECEDING, "$l$"),
+    "ssgp-mpc-linearized-guarded": Style(_SSGP_LINEARIZED_GUARDED, RECEDING, "$g$"),
     # the SSGP RTI plans with the residual linearized per node, as ssgp-mpc-linearized does
     "ssgp-mpc-rti": Style(_SSGP_LINEARIZED, RTI, "8"),
     # the zero-order RTI plans with the residual's value only; "-split": preparation/feedback
