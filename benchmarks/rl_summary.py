@@ -362,7 +362,8 @@ def write_summary(names: list[str], out: Path = OUT) -> Path:
     out.mkdir(parents=True, exist_ok=True)
     lines = ["# RL baselines over seeds", "",
              "Written by `python -m benchmarks.rl_summary "
-             + " ".join(f"--plan {n}" for n in names) + "` from the runs of "
+             + " ".join(f"--plan {n}" for n in names)
+             + ("" if out == OUT else f" --out {_rel(out)}") + "` from the runs of "
              "`python -m benchmarks.rl_runs` (models in `benchmarks/models/runs/<plan>/seed<K>/`)."
              " Every policy is loaded with `RLAgent.load` into `gym.make(env_id, scenario=...)` "
              "and run deterministically in the plain loop. Success: `info[\"is_success\"]` at "
@@ -496,11 +497,14 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--plan", action="append", choices=sorted(PLANS), default=None,
                         help="plan(s) to summarize (default cartpole_online_sac)")
     parser.add_argument("--pilot", action="store_true", help="write the pilot report instead")
+    parser.add_argument("--out", type=Path, default=OUT,
+                        help="directory of summary.md, its CSVs and figures (default "
+                             "benchmarks/results/rl; a plan's section alone can go elsewhere)")
     args = parser.parse_args(argv)
     if args.pilot:
         write_pilot(args.plan or [n for n in PLANS if n.startswith("pilot_")])
     else:
-        write_summary(args.plan or ["cartpole_online_sac"])
+        write_summary(args.plan or ["cartpole_online_sac"], out=args.out)
 
 
 if __name__ == "__main__":
