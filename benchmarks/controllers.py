@@ -33,9 +33,10 @@ the residual switched off while it predicts worse than the nominal model
 
 Real-time-iteration variants (:data:`RTI_VARIANTS`, preset ``rti``): ``nominal-mpc-rti``,
 ``oracle-mpc-rti``, ``ssgp-mpc-rti`` (``scheme="rti"``; the SSGP one with the GP linearized),
-``ssgp-mpc-rti-zero-order`` (the GP's value frozen per node, adjoint-corrected), and each
-of the three with ``-split`` (``scheme="rti-split"``: preparation after the action, feedback
-on the measurement);
+``ssgp-mpc-rti-zero-order`` (the GP's value frozen per node, adjoint-corrected),
+``ssgp-mpc-rti-pattern`` (the GP linearized on the nominal Jacobian pattern, the rest
+adjoint-corrected), and each of the four with ``-split`` (``scheme="rti-split"``:
+preparation after the action, feedback on the measurement);
 and their converged references warm-started with the previous multipliers
 (:data:`WARM_DUAL_VARIANTS`): ``nominal-mpc-warm-duals``, ``oracle-mpc-warm-duals``.
 
@@ -240,7 +241,15 @@ RTI_VARIANTS["ssgp-mpc-rti-zero-order"] = ControllerRecipe(
     "nominal QP structure, the gradient corrected with the previous multipliers)",
     learner="ssgp", learn_online=True,
     settings=(("scheme", "rti"), ("learned_dynamics", "zero-order")))
-for _name in ("nominal-mpc-rti", "ssgp-mpc-rti", "ssgp-mpc-rti-zero-order"):
+RTI_VARIANTS["ssgp-mpc-rti-pattern"] = ControllerRecipe(
+    "ssgp-mpc-rti-pattern", "SSGP MPC, RTI pattern", "mpc",
+    "ssgp-mpc-rti with the GP's Jacobian kept only on the nominal model's Jacobian pattern "
+    "(learned_dynamics='linearized-pattern': the nominal QP structure with the learned control "
+    "gains, the dropped derivatives corrected with the previous multipliers)",
+    learner="ssgp", learn_online=True,
+    settings=(("scheme", "rti"), ("learned_dynamics", "linearized-pattern")))
+for _name in ("nominal-mpc-rti", "ssgp-mpc-rti", "ssgp-mpc-rti-zero-order",
+              "ssgp-mpc-rti-pattern"):
     _base = RTI_VARIANTS[_name]
     RTI_VARIANTS[f"{_name}-split"] = dataclasses.replace(
         _base, name=f"{_name}-split", label=f"{_base.label}, split",

@@ -262,7 +262,8 @@ def linearized(seeds: Sequence[int] = tuple(range(10)),
 
 RTI_CONTROLLERS = ("nominal-mpc", "nominal-mpc-warm-duals", "nominal-mpc-rti",
                    "nominal-mpc-rti-split", "ssgp-mpc", "ssgp-mpc-rti", "ssgp-mpc-rti-split",
-                   "ssgp-mpc-rti-zero-order", "ssgp-mpc-rti-zero-order-split")
+                   "ssgp-mpc-rti-zero-order", "ssgp-mpc-rti-zero-order-split",
+                   "ssgp-mpc-rti-pattern", "ssgp-mpc-rti-pattern-split")
 """The converged and real-time-iteration recipes the ``rti`` preset compares."""
 
 
@@ -286,7 +287,9 @@ def rti(seeds: Sequence[int] = tuple(range(10)),
         "`warm_start_duals=True`, the faster converged reference) and as a real-time "
         "iteration (`scheme='rti'`: a converged cold start, then one Gauss-Newton SQP step "
         "per period; the SSGP one with the GP linearized per node at the shifted plan, or "
-        "with its value frozen per node and the gradient adjoint-corrected, `zero-order`), "
+        "with its value frozen per node and the gradient adjoint-corrected, `zero-order`, or "
+        "linearized on the nominal model's Jacobian pattern with the dropped derivatives "
+        "adjoint-corrected, `pattern`), "
         "each RTI also split into a preparation after the action and a feedback phase on the "
         "measurement (`-split`, `scheme='rti-split'`: its latency is the act time minus the "
         "preparation), all in one run so that the step-time ratios compare like with like; "

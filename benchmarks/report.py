@@ -1114,8 +1114,9 @@ def _linearization_errors(ctx: Context, exp: Experiment) -> list[str]:
     for t in ctx.of(exp):
         if t.spec.kind != "episode" or not t.ok or "diag_linearization_error" not in t.arrays:
             continue
-        if CONTROLLERS.get(t.spec.controller) is None or ("learned_dynamics", "linearized") \
-                not in CONTROLLERS[t.spec.controller].settings:
+        recipe = CONTROLLERS.get(t.spec.controller)
+        if recipe is None or dict(recipe.settings).get("learned_dynamics") not in (
+                "linearized", "linearized-pattern"):
             continue
         err = t.arrays["diag_linearization_error"][t.arrays["diag_replanned"].astype(bool)]
         groups[(t.spec.env, t.spec.scenario, t.spec.controller)].append(err)

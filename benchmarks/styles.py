@@ -109,6 +109,9 @@ STYLES: dict[str, Style] = {
     "nominal-mpc-rti-split": Style(_NOMINAL, RTI, "$n$", linewidth=1.6),
     "ssgp-mpc-rti-split": Style(_SSGP_LINEARIZED, RTI, "$s$"),
     "ssgp-mpc-rti-zero-order-split": Style(_SSGP, RTI, "$Z$"),
+    # the pattern RTI: the linearized residual on the nominal Jacobian pattern
+    "ssgp-mpc-rti-pattern": Style(_SSGP_LINEARIZED, RTI, "$p$"),
+    "ssgp-mpc-rti-pattern-split": Style(_SSGP_LINEARIZED, RTI, "$P$"),
     "sac": Style(_SAC, RECEDING, "*"),
     "ppo": Style(_PPO, RECEDING, "X"),
 }

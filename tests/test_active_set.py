@@ -90,6 +90,23 @@ def test_unsettled_iterations_and_non_finite_data_go_to_the_fallback():
     assert out["iterations"][0] == 0 and np.all(np.isnan(out["x"]))  # the caller rejects it
 
 
+def test_a_qp_in_large_units_is_not_called_inaccurate():
+    """The linear solves' accuracy test is relative to the right-hand side: the same QP in
+    units 1e8 times larger (gradient and bounds scaled, so the solution scales) settles in
+    the same iterations at the scaled solution, from no guess and from the right one."""
+    qp = random_qp(2)
+    n, m = qp["g"].size, qp["lba"].size
+    big = {k: (v if k in ("h", "a") else 1e8 * v) for k, v in qp.items()}
+    ref = solve(ActiveSetQP("proxqp", max_iter=30), qp, np.zeros(n), np.zeros(m))
+    scaled = solve(ActiveSetQP("proxqp", max_iter=30), big, np.zeros(n), np.zeros(m))
+    assert scaled["iterations"][0] == ref["iterations"][0] > 1
+    np.testing.assert_allclose(scaled["x"], 1e8 * ref["x"], rtol=1e-9, atol=1e-6)
+    guess_x = np.sign(ref["lam_x"]) * (np.abs(ref["lam_x"]) > 1e-8)
+    guess_a = np.sign(ref["lam_a"]) * (np.abs(ref["lam_a"]) > 1e-8)
+    again = solve(ActiveSetQP("proxqp", max_iter=30), big, guess_x, guess_a)
+    assert again["iterations"][0] == 1
+
+
 def test_settings_are_checked():
     for kwargs in (dict(max_iter=0), dict(tol=0.0), dict(residual_tol=np.nan),
                    dict(regularization=-1.0)):

@@ -14,6 +14,7 @@ from gp_agents.agent import rollout
 from gp_agents.data import collect_initial_data
 from gp_agents.learners import IncrementalSSGP
 from gp_agents.mpc import GPInNLP, LinearizedGP, PseudospectralMPC, online_ssgp
+from gp_agents.mpc.gp_pattern import nominal_pattern
 from gp_agents.residual import ResidualModel
 from gp_envs.systems import get_system
 
@@ -475,7 +476,7 @@ def test_the_levenberg_marquardt_term_is_mu_on_the_rti_hessians_diagonal():
             PseudospectralMPC.from_env(env, scheme="rti", levenberg_marquardt=bad)
 
 
-@pytest.mark.parametrize("term", ["linearized", "zero-order"])
+@pytest.mark.parametrize("term", ["linearized", "linearized-pattern", "zero-order"])
 def test_the_exact_ocps_kkt_point_is_a_fixed_point_of_the_learned_rti_step(term):
     """From the plan of the GP inside the NLP solved by IPOPT and its multipliers, one
     Gauss-Newton SQP step (``RTIPlanner.iterate``, no time shift) with the GP linearized per
@@ -497,19 +498,19 @@ def test_the_exact_ocps_kkt_point_is_a_fixed_point_of_the_learned_rti_step(term)
     np.testing.assert_allclose(w, sol.nlp_x, atol=1e-5)
     np.testing.assert_allclose(lam, sol.nlp_lam_g, atol=1e-4 * np.max(np.abs(sol.nlp_lam_g)))
     assert violation < 1e-6
-    if term == "zero-order":
+    if term != "linearized":
         w0, _, _ = planner.iterate(obs, sol.nlp_x, np.zeros(sol.nlp_lam_g.size))
         assert np.max(np.abs(w0 - sol.nlp_x)) > 1e-2
 
 
-def test_zero_order_rti_keeps_the_nominal_qp_structure_and_swings_up():
-    """The frozen GP value adds no constraint-Jacobian entries to the RTI's QP (the linearized
-    one adds a block per node), and its closed loop on the cart pole ``gp`` scenario is the
-    linearized RTI's."""
+def test_zero_order_and_pattern_rti_keep_the_nominal_qp_structure_and_swing_up():
+    """The frozen GP value and the expansion on the nominal pattern add no constraint-Jacobian
+    entries to the RTI's QP (the linearized one adds a block per node), and their closed
+    loops on the cart pole ``gp`` scenario are the linearized RTI's."""
     env = gym.make(CART, scenario="gp")
     data = collect_initial_data(env, 100, seed=0)
     plans = {}
-    for term in ("none", "linearized", "zero-order"):
+    for term in ("none", "linearized", "linearized-pattern", "zero-order"):
         learner = None if term == "none" else online_ssgp(20)
         agent = PseudospectralMPC.from_env(env, learner, scheme="rti",
                                            **({} if learner is None else
@@ -520,13 +521,26 @@ def test_zero_order_rti_keeps_the_nominal_qp_structure_and_swings_up():
         nnz = ca.jacobian(agent.planner.ocp.nlp["g"], agent.planner.ocp.nlp["x"]).nnz()
         plans[term] = (ep, nnz, agent)
     assert plans["zero-order"][1] == plans["none"][1] < plans["linearized"][1]
-    (lin, _, _), (zo, _, zo_agent) = plans["linearized"], plans["zero-order"]
-    assert lin.success and zo.success
-    assert zo.cost == pytest.approx(lin.cost, rel=0.01)
-    assert zo_agent.planner.n_rti_steps > 100
+    assert plans["linearized-pattern"][1] == plans["none"][1]
+    lin = plans["linearized"][0]
+    assert lin.success
+    for term in ("zero-order", "linearized-pattern"):
+        ep, _, agent = plans[term]
+        assert ep.success and ep.cost == pytest.approx(lin.cost, rel=0.01)
+        assert agent.planner.n_rti_steps > 100
 
 
-@pytest.mark.parametrize("term", ["none", "linearized", "zero-order"])
+def test_the_nominal_pattern_is_the_dubins_kinematics():
+    """Dubins vehicle: x' = (1 - b1) u1 cos(psi), y' = (1 - b1) u1 sin(psi), psi' = (1 - b2)
+    u2 (the env's docstring), so the x and y rates depend on psi and u1, the heading rate on
+    u2 only; the learner's dependence on the position is dropped. As (output, column of
+    [x, y, psi, u1, u2]) pairs in column-major order."""
+    env = gym.make(DUBINS)
+    pattern = nominal_pattern(ResidualModel(env.unwrapped.nominal_model))
+    assert pattern == ((0, 2), (1, 2), (0, 3), (1, 3), (2, 4))
+
+
+@pytest.mark.parametrize("term", ["none", "linearized", "linearized-pattern", "zero-order"])
 def test_the_split_rtis_feedback_at_the_predicted_state_is_the_one_call_step(term):
     """Preparation (shift with the predicted X(t0), expansion, QP data) then feedback with the
     measured state equal to the prediction gives the one-call RTI's step from the same plan
@@ -602,16 +616,19 @@ def test_rti_tracks_the_converged_mpc_and_its_safety_net_falls_back_to_it():
         PseudospectralMPC.from_env(env, scheme="sometimes")
 
 
-@pytest.mark.parametrize("kappa", [0.0, 1.0], ids=["mean", "with-variance"])
-def test_the_rti_steps_compiled_expansion_is_the_numeric_one(kappa):
+@pytest.mark.parametrize(("term_name", "kappa"), [("linearized", 0.0), ("linearized", 1.0),
+                                                   ("linearized-pattern", 1.0)],
+                         ids=["mean", "with-variance", "pattern-with-variance"])
+def test_the_rti_steps_compiled_expansion_is_the_numeric_one(term_name, kappa):
     """The SSGP RTI linearizes inside its one compiled step (the learner's exported
     parameters in, matrix operations over the nodes): its node parameters, the plan it gives
     and its recorded expansion error equal the numeric path's (``node_param_values`` at the
     shifted plan, the same QP step, ``plan_error`` at the new plan), with the uncertainty
-    radius's variances too."""
+    radius's variances too. (The pattern term's QP step has the adjoint correction, tested
+    by the fixed-point test; here its expansion and error.)"""
     env = gym.make(DUBINS)
     agent = PseudospectralMPC.from_env(env, online_ssgp(10), scheme="rti",
-                                       learned_dynamics="linearized", uncertainty_radius=kappa)
+                                       learned_dynamics=term_name, uncertainty_radius=kappa)
     agent.pretrain(collect_initial_data(env, 60, seed=0))
     obs, _ = env.reset(seed=0)
     accepted = 0
@@ -633,10 +650,11 @@ def test_the_rti_steps_compiled_expansion_is_the_numeric_one(kappa):
             plan, record = planner.plan(obs, previous, agent._step)
             if record["status"] == "RTI":
                 accepted += 1
-                w_ref = np.asarray(planner._qp_step(ws, np.concatenate([p, q.ravel()]),
-                                                    np.zeros(ws.size))[0])
-                np.testing.assert_allclose(plan.solution.nlp_x, w_ref.ravel(), rtol=1e-9,
-                                           atol=1e-9)
+                if term_name == "linearized":
+                    w_ref = np.asarray(planner._qp_step(ws, np.concatenate([p, q.ravel()]),
+                                                        np.zeros(ws.size))[0])
+                    np.testing.assert_allclose(plan.solution.nlp_x, w_ref.ravel(),
+                                               rtol=1e-9, atol=1e-9)
                 assert record["linearization_error"] == pytest.approx(
                     term.plan_error(plan.solution), rel=1e-9)
                 assert record["linearization_error"] > 0

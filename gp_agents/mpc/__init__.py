@@ -11,6 +11,7 @@
 ``learned_term``        the strategy interface, :class:`NoLearnedTerm`
 ``gp_in_nlp``           :class:`GPInNLP`: the GP's mean inside the NLP (the paper's OCP)
 ``gp_linearized``       :class:`LinearizedGP`: the GP linearized per node (real-time iteration)
+``gp_pattern``          :class:`PatternLinearizedGP`: linearized on the nominal Jacobian pattern
 ``gp_zero_order``       :class:`ZeroOrderGP`: the GP's value frozen per node, adjoint-corrected
 ``diagnostics``         :class:`StepRecord`
 ======================  ==================================================================
@@ -21,6 +22,7 @@ from gp_agents.mpc.controller import LEARNED_TERMS, PseudospectralMPC
 from gp_agents.mpc.diagnostics import StepRecord
 from gp_agents.mpc.gp_in_nlp import MAX_LEARNED_MODEL_SIZE, GPInNLP
 from gp_agents.mpc.gp_linearized import COLD_START_LINEARIZATIONS, LinearizedGP
+from gp_agents.mpc.gp_pattern import PatternLinearizedGP
 from gp_agents.mpc.gp_zero_order import ZeroOrderGP
 from gp_agents.mpc.learned_term import LearnedTerm, NoLearnedTerm
 from gp_agents.mpc.ocp import Constraints, Mesh, build_ocp
@@ -40,6 +42,7 @@ __all__ = [
     "LinearizedGP",
     "Mesh",
     "NoLearnedTerm",
+    "PatternLinearizedGP",
     "Plan",
     "Planner",
     "PlanningModel",

@@ -31,6 +31,7 @@ from gp_agents.mpc.active_set import ActiveSetQP
 from gp_agents.mpc.diagnostics import StepRecord, records_to_arrays
 from gp_agents.mpc.gp_in_nlp import GPInNLP
 from gp_agents.mpc.gp_linearized import LinearizedGP
+from gp_agents.mpc.gp_pattern import PatternLinearizedGP
 from gp_agents.mpc.gp_zero_order import ZeroOrderGP
 from gp_agents.mpc.learned_term import LearnedTerm, NoLearnedTerm
 from gp_agents.mpc.ocp import Constraints
@@ -47,8 +48,10 @@ SCHEMES: dict[str, type[Planner]] = {"converged": Planner, "rti": RTIPlanner,
 """``scheme`` names and their planners."""
 
 LEARNED_TERMS: dict[str, type[LearnedTerm]] = {"exact": GPInNLP, "linearized": LinearizedGP,
+                                               "linearized-pattern": PatternLinearizedGP,
                                                "zero-order": ZeroOrderGP}
-"""``learned_dynamics`` names: the GP inside the NLP (the paper's OCP), linearized per node, or
+"""``learned_dynamics`` names: the GP inside the NLP (the paper's OCP), linearized per node,
+linearized on the nominal model's Jacobian pattern (the rest adjoint-corrected in the RTI), or
 its value frozen per node (with the RTI's adjoint correction)."""
 
 
@@ -90,9 +93,12 @@ class PseudospectralMPC:
         uncertainty_radius: ``kappa`` >= 0 of the obstacle constraint (:mod:`~gp_agents.mpc.
             ocp`); 0 reproduces the paper's run.
         learned_dynamics: how the learner enters the NLP: ``"exact"`` (:class:`GPInNLP`),
-            ``"linearized"`` (:class:`LinearizedGP`), ``"zero-order"`` (:class:`ZeroOrderGP`:
-            the value frozen per node, the nominal QP structure; meant for ``scheme="rti"``,
-            whose steps correct its gradient with the multipliers), or a configured term
+            ``"linearized"`` (:class:`LinearizedGP`), ``"linearized-pattern"``
+            (:class:`~gp_agents.mpc.gp_pattern.PatternLinearizedGP`: the linearization's
+            entries on the nominal Jacobian pattern only, the nominal QP structure),
+            ``"zero-order"`` (:class:`ZeroOrderGP`: the value frozen per node, the nominal QP
+            structure; both meant for ``scheme="rti"``, whose steps correct their gradient
+            with the multipliers), or a configured term
             instance (e.g.
             ``LinearizedGP(max_linearizations=3)``, ``GPInNLP(hessian="nominal")``; copied).
         solver, solver_options, jit: the NLP solver (:class:`~gp_agents.mpc.planner.Planner`).

@@ -93,14 +93,25 @@ class LinearizedGP(LearnedTerm):
         X, U = np.atleast_2d(X), np.atleast_2d(U)
         mean, jac, var = self.residual.linearize(self.learner, X, U, variance=self.variance)
         points = np.hstack([X, U])
+        jac = self._planned_jacobian(jac)
         c = mean - np.einsum("kij,kj->ki", jac, points)
-        cols = list(self.residual.jacobian_columns)
-        blocks = [c, jac[:, :, cols].transpose(0, 2, 1).reshape(X.shape[0], -1)]
+        blocks = [c, self._jacobian_entries(jac)]
         if var is not None:
             unc = self.residual.uncertain_indices
             blocks.append(var[:, [unc.index(0), unc.index(1)]])
         self._expansion = dict(mean=mean, jacobian=jac, points=points)
         return np.hstack(blocks)
+
+    def _planned_jacobian(self, jac: np.ndarray) -> np.ndarray:
+        """The part (M, d_out, n + m) of the learned Jacobians ``jac`` the NLP plans with:
+        all of it (a subclass may drop entries)."""
+        return jac
+
+    def _jacobian_entries(self, jac: np.ndarray) -> np.ndarray:
+        """(M, n_jacobian - d_out) node parameters of the Jacobians ``jac`` (M, d_out, n + m):
+        ``vec(J_k[:, cols])`` per node."""
+        cols = list(self.residual.jacobian_columns)
+        return jac[:, :, cols].transpose(0, 2, 1).reshape(jac.shape[0], -1)
 
     # ------------------------------------------------------------------ compiled expansion
     def expansion_param_values(self) -> np.ndarray:
@@ -147,7 +158,6 @@ class LinearizedGP(LearnedTerm):
         mean_s = self.learner.casadi_mean_batch(Zs, ts)
         G = ca.jacobian(ca.vec(mean_s), ca.vec(Zs))
         mean, G = ca.Function("learned_mean_jacobian", [Zs, ts], [mean_s, G])(Z, theta)
-        cols = list(res.jacobian_columns)
         points = ca.vertcat(X, U)
         if self.variance:
             var = self.learner.casadi_variance_batch(Z, theta)
@@ -156,11 +166,16 @@ class LinearizedGP(LearnedTerm):
         for k in range(M):
             J = ca.mtimes(G[k * d_out:(k + 1) * d_out, k * d_in:(k + 1) * d_in],
                           dZ[:, k * (n + m):(k + 1) * (n + m)])
-            col = [mean[:, k] - ca.mtimes(J, points[:, k]), ca.vec(J[:, cols])]
+            col = self._node_expansion_expr(mean[:, k], J, points[:, k])
             if self.variance:
                 col += [var[unc.index(0), k], var[unc.index(1), k]]
             columns.append(ca.vertcat(*col))
         return ca.horzcat(*columns)
+
+    def _node_expansion_expr(self, mean: ca.MX, J: ca.MX, point: ca.MX) -> list[ca.MX]:
+        """One node's ``[c_k; vec(J_k[:, cols])]`` from its mean (d_out,), Jacobian J
+        (d_out, n + m) and point ``[xb_k; ub_k]`` (symbolic :meth:`node_param_values`)."""
+        return [mean - ca.mtimes(J, point), ca.vec(J[:, list(self.residual.jacobian_columns)])]
 
     def plan_error_expr(self, X: ca.MX, U: ca.MX, Q: ca.MX, theta: ca.MX) -> ca.MX:
         """:meth:`plan_error` as a CasADi expression: the error of the expansion ``Q``

@@ -101,9 +101,10 @@ class ZeroOrderGP(LinearizedGP):
         unc = self.residual.uncertain_indices
         return ca.vertcat(mean, var[unc.index(0), :], var[unc.index(1), :])
 
-    def jacobian_gap_expr(self, X: ca.MX, U: ca.MX, theta: ca.MX, mu: ca.MX) -> ca.MX:
+    def jacobian_gap_expr(self, X: ca.MX, U: ca.MX, theta: ca.MX, mu: ca.MX,
+                          Q: ca.MX) -> ca.MX:
         """``sum_k mu_k' mean(x_k, u_k)`` (scalar) for node states X (n, M), controls U (m, M)
-        and weights mu (d_out, M): its gradient in (X, U) at the reference is the gap
+        and weights mu (d_out, M) (Q unused): its gradient in (X, U) at the reference is the gap
         ``(J_exact - J_nlp)' lambda`` of the module docstring (the NLP's rates do not depend
         on (X, U))."""
         mean = self._mean_function(X.shape[1], theta.numel())(ca.vertcat(X, U), theta)

@@ -116,10 +116,11 @@ class LearnedTerm:
         with and theta; 0 for an exact term."""
         return ca.DM(0.0)
 
-    def jacobian_gap_expr(self, X: Any, U: Any, theta: Any, mu: Any) -> Any | None:
+    def jacobian_gap_expr(self, X: Any, U: Any, theta: Any, mu: Any, Q: Any) -> Any | None:
         """For a term whose rates in the NLP have another Jacobian than the learned mean's (a
-        frozen value): a scalar CasADi expression of node states X (n, M), controls U (m, M),
-        theta and weights mu (d_out, M) whose gradient in (X, U) at the reference is
+        frozen value, a dropped entry): a scalar CasADi expression of node states X (n, M),
+        controls U (m, M), theta, weights mu (d_out, M) and the node parameters Q
+        (n_node_params, M) of the reference, whose gradient in (X, U) at the reference is
         ``sum_k (d mean_k - d rates_k)' mu_k``, the gradient correction of an adjoint-based
         RTI step (:mod:`~gp_agents.mpc.gp_zero_order`). None (the default): no gap.
         """

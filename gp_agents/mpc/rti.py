@@ -251,7 +251,8 @@ class RTIPlanner(Planner):
         n_q = term.n_node_params()
         w_sym, t_sym, mu_sym = (ca.MX.sym("w", ocp.n_variables), ca.MX.sym("theta", n_theta),
                                 ca.MX.sym("mu", d, M))
-        gap = term.jacobian_gap_expr(*self._nodes(w_sym), t_sym, mu_sym)
+        q_sym = ca.MX.sym("q", n_q, M)
+        gap = term.jacobian_gap_expr(*self._nodes(w_sym), t_sym, mu_sym, q_sym)
         if gap is None:
             return ca.DM.zeros(ocp.n_variables), None
         # mu_k = (dg/dq_k)' lam: the multipliers' weight on node k's learned rates
@@ -262,9 +263,10 @@ class RTIPlanner(Planner):
         lam_prev = ca.MX.sym("lam_prev", nlp["g"].numel())
         tail = adjoint(ws, P_full, lam_prev)[P_full.numel() - M * n_q:]
         mu = ca.reshape(tail, n_q, M)[:d, :]
-        gap_gradient = ca.Function("rti_jacobian_gap", [w_sym, t_sym, mu_sym],
+        Q = ca.reshape(P_full[P_full.numel() - M * n_q:], n_q, M)
+        gap_gradient = ca.Function("rti_jacobian_gap", [w_sym, t_sym, mu_sym, q_sym],
                                    [ca.gradient(gap, w_sym)])
-        return gap_gradient(ws, theta, mu), lam_prev
+        return gap_gradient(ws, theta, mu, Q), lam_prev
 
     def _learned_step(self, n_theta: int, shift: bool = True) -> BufferedFunction:
         """The warm step with a node-parameter term (built once per learner size ``n_theta``):
