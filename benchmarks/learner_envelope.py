@@ -226,6 +226,22 @@ def _boxed(detect: bool, gate: bool) -> Callable[[np.ndarray], Any]:
     return make
 
 
+def _saturated(level: float) -> Callable[[], Any]:
+    """The guarded recipe's learner (``online_ssgp(linear_features=True,
+    change_detector=ChangeDetector(), nominal_fallback=NominalFallback())``, i.e.
+    ``gate-detect-ls5``) with its standardized inputs saturated at ``level`` standard
+    deviations (``input_saturation``): a plan at the corner of the control box, tens of
+    standard deviations from the initial data, is then seen as ``level`` away, so the linear
+    features fitted on the initial data cannot extrapolate their slope across the box."""
+    def make() -> Any:
+        from gp_agents import online_ssgp
+        from gp_agents.learners import ChangeDetector, NominalFallback
+
+        return online_ssgp(linear_features=True, change_detector=ChangeDetector(),
+                           nominal_fallback=NominalFallback(), input_saturation=level)
+    return make
+
+
 def _recipe() -> Any:
     from gp_agents import online_ssgp
 
@@ -273,6 +289,9 @@ VARIANTS: dict[str, Callable[..., Any]] = {
     "gate-detect-ls5": _gated(detect=True),
     "box-ls5": _boxed(detect=False, gate=False),
     "box-detect-gate-ls5": _boxed(detect=True, gate=True),
+    "sat3-gate-detect-ls5": _saturated(3.0),
+    "sat5-gate-detect-ls5": _saturated(5.0),
+    "sat10-gate-detect-ls5": _saturated(10.0),
     "recipe": _recipe,  # whatever online_ssgp() is on this checkout
 }
 

@@ -694,6 +694,92 @@ def test_save_load_roundtrip_linear(tmp_path, data):
     np.testing.assert_array_equal(model.predict(Zt), loaded.predict(Zt))
 
 
+# ---------------------------------------------------------------------------- input saturation
+def test_input_saturation_is_a_dense_tanh_of_the_standardized_inputs(data):
+    """The saturated model is the plain one on inputs ``s tanh(z_s / s)``: the dense weight-space
+    formula on those, bounded linear features far outside the data, and the identity at s=inf."""
+    Z, Y, Zt, _ = data
+    hyp = _hyp(3, 2, ell=1.5, sf=0.8, sn=0.1)
+    kw = dict(hyperparameters=hyp, linear_features=True, linear_std=0.7, random_state=1)
+    sat = SSGP(10, input_saturation=2.0, **kw).fit(Z, Y)
+    std = sat.standardizer_
+    assert std.saturates and std.input_saturation == 2.0
+
+    def squash(X):
+        return 2.0 * np.tanh(((X - std.z_mean) / std.z_std) / 2.0)
+
+    def feats(X, j):
+        U = X @ (sat.base_frequencies_[j] / hyp.length_scales[j][:, None])
+        return np.hstack([0.8 / np.sqrt(10) * np.cos(U), 0.8 / np.sqrt(10) * np.sin(U), 0.7 * X])
+
+    far = Zt * 50.0  # tens of standard deviations out
+    for j in range(2):
+        F = feats(squash(Z), j)
+        w = np.linalg.solve(F.T @ F + 0.01 * np.eye(F.shape[1]),
+                            F.T @ std.transform_outputs(Y)[:, j])
+        mean = std.inverse_mean(np.c_[feats(squash(far), j) @ w] * np.ones((1, 2)))[:, j]
+        np.testing.assert_allclose(sat.predict(far)[:, j], mean, rtol=1e-9, atol=1e-9)
+    # bounded: a query 1000x farther out predicts what one at the saturation level does
+    np.testing.assert_allclose(sat.predict(far * 1000.0), sat.predict(np.sign(far) * 1e9),
+                               rtol=1e-9)
+    plain = SSGP(10, **kw).fit(Z, Y)
+    inf = SSGP(10, input_saturation=np.inf, **kw).fit(Z, Y)
+    assert not plain.standardizer_.saturates
+    np.testing.assert_array_equal(inf.predict(far), plain.predict(far))
+    np.testing.assert_array_equal(inf.predict_gradient(far), plain.predict_gradient(far))
+    assert np.abs(plain.predict(far)).max() > 10 * np.abs(sat.predict(far)).max()
+
+
+@pytest.mark.parametrize("sym", [ca.SX, ca.MX], ids=["SX", "MX"])
+def test_casadi_export_with_input_saturation(sym, data):
+    """CasADi mean, variance and Jacobian equal predict / predict_gradient (chain rule through
+    the saturation), the batch export too; the gradient matches finite differences."""
+    Z, Y, Zt, _ = data
+    model = IncrementalSSGP(12, forgetting_factor=0.98, linear_features=True, n_restarts=0,
+                            input_saturation=1.5, random_state=2).fit(Z[:60], Y[:60])
+    Zq = np.vstack([Zt[:4], 3.0 * Zt[4:7]])  # inside and outside the saturation's knee
+    P = model.casadi_param_size()
+    z, theta = sym.sym("z", 3), sym.sym("theta", P)
+    mean = model.casadi_mean(z, theta)
+    fn = ca.Function("gp", [z, theta], [mean, model.casadi_variance(z, theta),
+                                        ca.jacobian(mean, z)])
+    _check_export(fn, model, Zq)
+    model.update(Z[60:], Y[60:])
+    _check_export(fn, model, Zq)
+    Zb, tb = ca.MX.sym("Z", 3, len(Zq)), ca.MX.sym("theta", P)
+    batch = ca.Function("b", [Zb, tb], [model.casadi_mean_batch(Zb, tb)])
+    np.testing.assert_allclose(np.asarray(batch(Zq.T, model.casadi_param_values())).T,
+                               model.predict(Zq), rtol=1e-10, atol=1e-10)
+    for z0 in Zq:
+        step = [model.predict((z0 + 1e-6 * e)[None])[0] - model.predict((z0 - 1e-6 * e)[None])[0]
+                for e in np.eye(3)]
+        np.testing.assert_allclose(model.predict_gradient(z0[None])[0],
+                                   np.stack(step, axis=1) / 2e-6, rtol=1e-5, atol=1e-6)
+
+
+def test_save_load_roundtrip_input_saturation(tmp_path, data):
+    Z, Y, Zt, _ = data
+    model = IncrementalSSGP(12, forgetting_factor=0.98, linear_features=True, n_restarts=0,
+                            input_saturation=3.0, random_state=5).fit(Z[:50], Y[:50])
+    model.update(Z[50:80], Y[50:80])
+    model.save(tmp_path / "sat.npz")
+    loaded = IncrementalSSGP.load(tmp_path / "sat.npz")
+    assert loaded.input_saturation == 3.0 and loaded.standardizer_.input_saturation == 3.0
+    np.testing.assert_array_equal(model.predict(5 * Zt), loaded.predict(5 * Zt))
+    plain = IncrementalSSGP(12, n_restarts=0, random_state=5).fit(Z[:50], Y[:50])
+    plain.save(tmp_path / "plain.npz")
+    assert IncrementalSSGP.load(tmp_path / "plain.npz").input_saturation is None
+
+
+@pytest.mark.parametrize("bad", [0.0, -1.0, np.nan, "x"])
+def test_bad_input_saturation(bad, data, exact_gp):
+    Z, Y, _, _ = data
+    with pytest.raises((ValueError, TypeError)):
+        SSGP(5, input_saturation=bad, n_restarts=0).fit(Z, Y)
+    with pytest.raises(ValueError, match="ExactGP"):
+        SSGP(5, hyperparameters=exact_gp, input_saturation=3.0).fit(Z, Y)
+
+
 # ---------------------------------------------------------------------------- change detection
 def test_change_detector_declares_a_persistent_change_only():
     rng = np.random.default_rng(0)

@@ -19,7 +19,7 @@ import casadi as ca
 import numpy as np
 
 from ._validation import NotFittedError, check_inputs
-from .casadi_export import ParamLayout, sym_standardize
+from .casadi_export import ParamLayout, sym_saturate, sym_standardize
 from .hyperparameters import GPHyperparameters
 from .standardization import Standardizer
 
@@ -128,7 +128,9 @@ class BaseGPLearner(ABC):
         s = self.standardizer_
         assert s is not None
         G = self._gradient_std(s.transform_inputs(Z))
-        return G * s.y_std[None, :, None] / s.z_std[None, None, :]
+        if not s.saturates:
+            return G * s.y_std[None, :, None] / s.z_std[None, None, :]
+        return G * s.y_std[None, :, None] * s.input_jacobian(Z)[:, None, :]
 
     def casadi_param_size(self) -> int:
         """Length ``P`` of the CasADi parameter vector (fixed once fitted)."""
@@ -152,7 +154,8 @@ class BaseGPLearner(ABC):
     def _sym_outputs(self, z: ca.SX | ca.MX, theta: ca.SX | ca.MX, variance: bool) -> ca.SX | ca.MX:
         self._check_fitted()
         layout = self._layout()
-        zs = sym_standardize(z, layout.unpack(theta, "z_mean"), layout.unpack(theta, "z_std"))
+        zs = sym_standardize(z, layout.unpack(theta, "z_mean"), layout.unpack(theta, "z_std"),
+                             self.standardizer_.input_saturation)
         return self._sym_rows(theta, variance,
                               lambda j: self._sym_mean_var(zs, theta, j, variance))
 
@@ -186,8 +189,8 @@ class BaseGPLearner(ABC):
         d, M = self.n_features_in_, Z.shape[1]
         if Z.shape[0] != d:
             raise ValueError(f"Z must have {d} rows (one column per point), got {Z.shape}")
-        Zs = (Z - ca.repmat(layout.unpack(theta, "z_mean"), 1, M)) / ca.repmat(
-            layout.unpack(theta, "z_std"), 1, M)
+        Zs = sym_saturate((Z - ca.repmat(layout.unpack(theta, "z_mean"), 1, M)) / ca.repmat(
+            layout.unpack(theta, "z_std"), 1, M), self.standardizer_.input_saturation)
         return self._sym_rows(theta, variance,
                               lambda j: self._sym_mean_var_batch(Zs, theta, j, variance))
 

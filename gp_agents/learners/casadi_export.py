@@ -23,6 +23,7 @@ import numpy as np
 __all__ = [
     "ParamLayout",
     "sym_fourier_features",
+    "sym_saturate",
     "sym_se_ard_mean_var",
     "sym_standardize",
 ]
@@ -84,10 +85,20 @@ def _check_z(z: ca.SX | ca.MX, d_in: int) -> None:
         raise ValueError(f"z must have shape ({d_in}, 1), got {z.shape}")
 
 
-def sym_standardize(z: ca.SX | ca.MX, z_mean: ca.SX | ca.MX, z_std: ca.SX | ca.MX) -> ca.SX | ca.MX:
-    """``(z - z_mean) / z_std`` for column vectors (d_in, 1)."""
+def sym_saturate(zs: ca.SX | ca.MX, saturation: float) -> ca.SX | ca.MX:
+    """``s tanh(zs / s)`` elementwise (:class:`~gp_agents.learners.Standardizer`'s input
+    saturation); ``zs`` itself for ``s = inf``."""
+    if not np.isfinite(saturation):
+        return zs
+    return saturation * ca.tanh(zs / saturation)
+
+
+def sym_standardize(z: ca.SX | ca.MX, z_mean: ca.SX | ca.MX, z_std: ca.SX | ca.MX,
+                    saturation: float = np.inf) -> ca.SX | ca.MX:
+    """``(z - z_mean) / z_std`` for column vectors (d_in, 1), then saturated at ``saturation``
+    standard deviations (:func:`sym_saturate`)."""
     _check_z(z, z_mean.shape[0])
-    return (z - z_mean) / z_std
+    return sym_saturate((z - z_mean) / z_std, saturation)
 
 
 def sym_se_ard_mean_var(

@@ -104,8 +104,9 @@ class IncrementalSSGP(SSGP):
         forgetting_factor: ``lambda`` in (0, 1]; 1 keeps every sample with equal weight.
         prior_refresh: prior coordinates restored per sample (``m`` in the module docstring).
         hyperparameters, bounds, n_restarts, max_iter, max_optimization_samples, normalize,
-        random_state, linear_features, linear_std: as in :class:`SSGP` (used once, by
-        :meth:`fit`; with linear features the state has ``2r + d_in`` coordinates).
+        random_state, linear_features, linear_std, input_saturation: as in :class:`SSGP`
+            (used once, by :meth:`fit`; with linear features the state has ``2r + d_in``
+            coordinates).
         change_detector: a :class:`ChangeDetector` (copied at :meth:`fit`), or None: restart
             from the new regime's samples when the learned function changes (module
             docstring).
@@ -135,6 +136,7 @@ class IncrementalSSGP(SSGP):
         linear_std: float = 1.0,
         change_detector: ChangeDetector | None = None,
         nominal_fallback: NominalFallback | None = None,
+        input_saturation: float | None = None,
     ) -> None:
         super().__init__(
             n_frequencies,
@@ -147,6 +149,7 @@ class IncrementalSSGP(SSGP):
             random_state=random_state,
             linear_features=linear_features,
             linear_std=linear_std,
+            input_saturation=input_saturation,
         )
         self.forgetting_factor = forgetting_factor
         self.prior_refresh = prior_refresh
@@ -412,7 +415,9 @@ class IncrementalSSGP(SSGP):
         )
         lin = np.asarray(data.get("linear_std", np.zeros(0)), dtype=float)
         obj.linear_features = lin.size > 0
-        obj._install(Standardizer.from_arrays(data), hyp, np.asarray(data["base_frequencies"]),
+        std = Standardizer.from_arrays(data)
+        obj.input_saturation = std.input_saturation if std.saturates else None
+        obj._install(std, hyp, np.asarray(data["base_frequencies"]),
                      lin if lin.size else None)
         chol = [np.asfortranarray(R) for R in np.asarray(data["cholesky_factor"], dtype=float)]
         n_seen = int(data["n_samples_seen"])

@@ -19,7 +19,8 @@ LINEAR_LENGTH_SCALE_FLOOR = 5.0
 def online_ssgp(n_frequencies: int = 50, forgetting_factor: float = 0.995,
                 random_state: int | None = 0, linear_features: bool = False,
                 change_detector: ChangeDetector | None = None,
-                nominal_fallback: NominalFallback | None = None) -> IncrementalSSGP:
+                nominal_fallback: NominalFallback | None = None,
+                input_saturation: float | None = None) -> IncrementalSSGP:
     """The online learner of the paper's Algorithm 1, as this project's benchmarks use it.
 
     An :class:`~gp_agents.learners.IncrementalSSGP` whose hyperparameters come from the SSGP's
@@ -49,11 +50,14 @@ def online_ssgp(n_frequencies: int = 50, forgetting_factor: float = 0.995,
             (:class:`~gp_agents.learners.ChangeDetector`).
         nominal_fallback: switch the residual off while it predicts the newest samples worse
             than zero, i.e. than the nominal model (:class:`~gp_agents.learners.NominalFallback`).
+        input_saturation: saturate the standardized inputs at this many standard deviations
+            (:class:`~gp_agents.learners.Standardizer`); None: no saturation.
     """
     return IncrementalSSGP(n_frequencies, forgetting_factor=forgetting_factor,
                            hyperparameters="ssgp", random_state=random_state,
                            linear_features=linear_features, change_detector=change_detector,
                            nominal_fallback=nominal_fallback,
+                           input_saturation=input_saturation,
                            bounds=HyperparameterBounds(
                                length_scale=(LINEAR_LENGTH_SCALE_FLOOR if linear_features
                                              else LENGTH_SCALE_FLOOR, 100.0)))

@@ -48,7 +48,7 @@ from .features import (
     scale_frequencies,
 )
 from .hyperparameters import GPHyperparameters, HyperparameterBounds
-from .standardization import Standardizer
+from .standardization import Standardizer, check_input_saturation
 
 __all__ = ["SSGP", "ssgp_nlml"]
 
@@ -134,6 +134,10 @@ class SSGP(BaseGPLearner):
         linear_std: ``sigma_l`` when the hyperparameters are not optimized here (``"exact"``,
             an ExactGP or given :class:`GPHyperparameters`); with ``"ssgp"`` it is the
             marginal likelihood's.
+        input_saturation: ``s``: the standardized inputs are saturated as ``s tanh(z_s / s)``
+            (:class:`Standardizer`) before the features, so that queries far outside the data
+            are treated as at ``s`` standard deviations; ``None``: no saturation. Not with
+            hyperparameters copied from an :class:`ExactGP` (whose inputs are not saturated).
 
     Fitted attributes:
         hyperparameters_, standardizer_, base_frequencies_ (d_out, d_in, r), omega_
@@ -156,8 +160,10 @@ class SSGP(BaseGPLearner):
         random_state: int | None = 0,
         linear_features: bool = False,
         linear_std: float = 1.0,
+        input_saturation: float | None = None,
     ) -> None:
         self.n_frequencies = n_frequencies
+        self.input_saturation = input_saturation
         self.linear_features = linear_features
         self.linear_std = linear_std
         self.hyperparameters = hyperparameters
@@ -195,8 +201,14 @@ class SSGP(BaseGPLearner):
         if linear and not (np.isfinite(self.linear_std) and self.linear_std > 0):
             raise ValueError("linear_std must be finite and positive")
         r = int(self.n_frequencies)
+        saturation = check_input_saturation(self.input_saturation)
         base = draw_base_frequencies(d_out, d_in, r, self.random_state)
         src = self.hyperparameters
+        if np.isfinite(saturation) and (isinstance(src, ExactGP) or (isinstance(src, str)
+                                                                     and src == "exact")):
+            raise ValueError("input_saturation cannot be combined with hyperparameters from an "
+                             "ExactGP (its inputs are not saturated); use 'ssgp' or "
+                             "GPHyperparameters")
         if isinstance(src, str) and src == "exact":
             src = ExactGP(
                 bounds=self.bounds,
@@ -212,7 +224,7 @@ class SSGP(BaseGPLearner):
             if src.n_features_in_ != d_in or src.n_outputs_ != d_out:
                 raise ValueError("the ExactGP's dimensions do not match the data")
             return src.standardizer_, src.hyperparameters_, base, fixed_lin
-        std = Standardizer.fit(Z, Y, self.normalize)
+        std = Standardizer.fit(Z, Y, self.normalize, saturation)
         if isinstance(src, GPHyperparameters):
             if src.d_in != d_in or src.d_out != d_out:
                 raise ValueError("hyperparameters do not match the data dimensions")
