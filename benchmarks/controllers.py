@@ -29,7 +29,9 @@ sensitivities, ``sensitivities=True``, and has linear features) and
 whose learner also restarts when it detects that the system changed
 (:class:`gp_agents.learners.ChangeDetector`); ``ssgp-mpc-linearized-guarded``, the latter with
 the residual switched off while it predicts worse than the nominal model
-(:class:`gp_agents.learners.NominalFallback`).
+(:class:`gp_agents.learners.NominalFallback`); ``ssgp-mpc-linearized-saturated``, the guarded
+one whose learner saturates its standardized inputs (``input_saturation``,
+:data:`gp_agents.learners.INPUT_SATURATION` standard deviations).
 
 Real-time-iteration variants (:data:`RTI_VARIANTS`, preset ``rti``): ``nominal-mpc-rti``,
 ``oracle-mpc-rti``, ``ssgp-mpc-rti`` (``scheme="rti"``; the SSGP one with the GP linearized),
@@ -213,6 +215,12 @@ SENSITIVITY_VARIANTS: dict[str, ControllerRecipe] = dict([
                   "predicts the newest samples worse than the nominal model "
                   "(online_ssgp(..., nominal_fallback=NominalFallback()))",
                   learner="ssgp-guarded", sensitivities=True, learned_dynamics="linearized"),
+    _ssgp_variant("linearized-saturated", "linearized, saturated",
+                  "ssgp-mpc-linearized-guarded whose learner saturates its standardized inputs "
+                  "at INPUT_SATURATION standard deviations (online_ssgp(..., "
+                  "input_saturation=INPUT_SATURATION)): plans far outside the initial data "
+                  "meet a bounded residual, not an extrapolated slope",
+                  learner="ssgp-saturated", sensitivities=True, learned_dynamics="linearized"),
 ])
 """Variants of ``ssgp-mpc`` whose residual has an explicit parametric part (issue: online
 learning across the envelope), compared by the ``robustness`` preset."""
@@ -351,10 +359,11 @@ class OracleModel:
 def make_learner(kind: str) -> Any:
     """A fresh residual learner of the recipe kind ``"exact"``, ``"ssgp"``, ``"ssgp-linear"``
     (:func:`gp_agents.online_ssgp` with linear features), ``"ssgp-adaptive"`` (linear
-    features and a :class:`~gp_agents.learners.ChangeDetector`) or ``"ssgp-guarded"`` (those
-    and a :class:`~gp_agents.learners.NominalFallback`)."""
+    features and a :class:`~gp_agents.learners.ChangeDetector`), ``"ssgp-guarded"`` (those
+    and a :class:`~gp_agents.learners.NominalFallback`) or ``"ssgp-saturated"`` (those and
+    the input saturation :data:`~gp_agents.learners.INPUT_SATURATION`)."""
     from gp_agents import online_ssgp
-    from gp_agents.learners import ChangeDetector, ExactGP, NominalFallback
+    from gp_agents.learners import INPUT_SATURATION, ChangeDetector, ExactGP, NominalFallback
 
     if kind == "exact":
         return ExactGP()
@@ -367,6 +376,9 @@ def make_learner(kind: str) -> Any:
     if kind == "ssgp-guarded":
         return online_ssgp(linear_features=True, change_detector=ChangeDetector(),
                            nominal_fallback=NominalFallback())
+    if kind == "ssgp-saturated":
+        return online_ssgp(linear_features=True, change_detector=ChangeDetector(),
+                           nominal_fallback=NominalFallback(), input_saturation=INPUT_SATURATION)
     raise ValueError(f"unknown learner kind {kind!r}")
 
 

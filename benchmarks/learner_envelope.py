@@ -292,6 +292,8 @@ VARIANTS: dict[str, Callable[..., Any]] = {
     "sat3-gate-detect-ls5": _saturated(3.0),
     "sat5-gate-detect-ls5": _saturated(5.0),
     "sat10-gate-detect-ls5": _saturated(10.0),
+    "sat20-gate-detect-ls5": _saturated(20.0),
+    "sat30-gate-detect-ls5": _saturated(30.0),
     "recipe": _recipe,  # whatever online_ssgp() is on this checkout
 }
 

@@ -318,7 +318,8 @@ def pendulum(seeds: Sequence[int] = tuple(range(1, 11))) -> Experiment:
 ROBUSTNESS_CONTROLLERS = ("nominal-mpc", "ssgp-mpc", "ssgp-mpc-linearized",
                           "ssgp-mpc-sensitivities", "ssgp-mpc-linearized-sensitivities",
                           "ssgp-mpc-adaptive", "ssgp-mpc-linearized-adaptive",
-                          "ssgp-mpc-linearized-guarded", "oracle-mpc")
+                          "ssgp-mpc-linearized-guarded", "ssgp-mpc-linearized-saturated",
+                          "oracle-mpc")
 """The controllers of the robustness envelope (the oracle is each cell's reference)."""
 ROBUSTNESS_SEEDS = tuple(range(200, 220))
 """Evaluation seeds of the robustness preset: never used to tune anything (the issue's own

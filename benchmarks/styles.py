@@ -76,6 +76,7 @@ _SSGP_LINEARIZED_SENSITIVITIES = "#17BECF"  # cyan
 _SSGP_ADAPTIVE = "#2CA02C"  # green
 _SSGP_LINEARIZED_ADAPTIVE = "#7F7F7F"  # grey
 _SSGP_LINEARIZED_GUARDED = "#D62728"  # red
+_SSGP_LINEARIZED_SATURATED = "#393B79"  # dark indigo
 _SAC = "#9467BD"  # purple
 _PPO = "#BCBD22"  # olive
 
@@ -102,6 +103,7 @@ STYLES: dict[str, Style] = {
     "ssgp-mpc-adaptive": Style(_SSGP_ADAPTIVE, RECEDING, "$a$"),
     "ssgp-mpc-linearized-adaptive": Style(_SSGP_LINEARIZED_ADAPTIVE, RECEDING, "$l$"),
     "ssgp-mpc-linearized-guarded": Style(_SSGP_LINEARIZED_GUARDED, RECEDING, "$g$"),
+    "ssgp-mpc-linearized-saturated": Style(_SSGP_LINEARIZED_SATURATED, RECEDING, "$t$"),
     # the SSGP RTI plans with the residual linearized per node, as ssgp-mpc-linearized does
     "ssgp-mpc-rti": Style(_SSGP_LINEARIZED, RTI, "8"),
     # the zero-order RTI plans with the residual's value only; "-split": preparation/feedback

@@ -14,11 +14,12 @@ from .exact_gp import ExactGP
 from .fallback import NominalFallback
 from .hyperparameters import GPHyperparameters, HyperparameterBounds
 from .incremental import IncrementalSSGP
-from .recipes import LENGTH_SCALE_FLOOR, LINEAR_LENGTH_SCALE_FLOOR, online_ssgp
+from .recipes import INPUT_SATURATION, LENGTH_SCALE_FLOOR, LINEAR_LENGTH_SCALE_FLOOR, online_ssgp
 from .ssgp import SSGP
 from .standardization import Standardizer
 
 __all__ = [
+    "INPUT_SATURATION",
     "LENGTH_SCALE_FLOOR",
     "LINEAR_LENGTH_SCALE_FLOOR",
     "SSGP",

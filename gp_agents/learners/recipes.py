@@ -7,13 +7,18 @@ from .fallback import NominalFallback
 from .hyperparameters import HyperparameterBounds
 from .incremental import IncrementalSSGP
 
-__all__ = ["LENGTH_SCALE_FLOOR", "LINEAR_LENGTH_SCALE_FLOOR", "online_ssgp"]
+__all__ = ["INPUT_SATURATION", "LENGTH_SCALE_FLOOR", "LINEAR_LENGTH_SCALE_FLOOR", "online_ssgp"]
 
 LENGTH_SCALE_FLOOR = 1.0
 """Smallest length scale of :func:`online_ssgp`'s learner, in standard deviations of its
 (standardized) inputs."""
 LINEAR_LENGTH_SCALE_FLOOR = 5.0
 """The same with linear features (see :func:`online_ssgp`)."""
+INPUT_SATURATION = 30.0
+"""Standard deviations of the initial data at which the saturated recipe's learner saturates
+its standardized inputs (``online_ssgp(input_saturation=INPUT_SATURATION)``). Chosen on tuning
+seeds 0-9 (``python -m benchmarks.learner_envelope``, variants ``sat3`` / ``sat5`` /
+``sat10-gate-detect-ls5``; see :func:`online_ssgp`)."""
 
 
 def online_ssgp(n_frequencies: int = 50, forgetting_factor: float = 0.995,
