@@ -14,6 +14,7 @@ from gp_agents.agent import rollout
 from gp_agents.data import collect_initial_data
 from gp_agents.learners import IncrementalSSGP
 from gp_agents.mpc import GPInNLP, LinearizedGP, PseudospectralMPC, online_ssgp
+from gp_agents.mpc.active_set import ActiveSetQP
 from gp_agents.mpc.gp_pattern import nominal_pattern
 from gp_agents.residual import ResidualModel
 from gp_envs.systems import get_system
@@ -565,7 +566,7 @@ def test_the_split_rtis_feedback_at_the_predicted_state_is_the_one_call_step(ter
     prep = planner._prepared
     x_pred = prep["w_s"][:obs.size].copy()
     fed = planner._feedback(prep["w_s"], x_pred, prep["h"], prep["grad"], prep["a"], prep["g"],
-                            prep["p"])
+                            prep["p"], *prep["guess"])
     args = [previous.solution.nlp_x, x_pred, planner.planning.param_values()]
     if learner is None:
         one_call = reference._step(*args)
@@ -580,6 +581,36 @@ def test_the_split_rtis_feedback_at_the_predicted_state_is_the_one_call_step(ter
     plan, _ = planner.plan(x, previous, step)
     assert planner.n_prepared == 29 + 1  # steps 1-29 and this one
     np.testing.assert_allclose(plan.solution.x[0], x, atol=1e-10)
+
+
+def test_the_split_rtis_predicted_active_set_is_that_of_the_qp_at_the_predicted_state():
+    """The preparation predicts the feedback's active set by solving the QP at the predicted
+    state: fed that very state, the feedback settles in one active-set iteration, at the same
+    solution as from the shifted plan's set (the one-call step's guess), which needed more
+    iterations wherever the plan reached or left a bound (the swing-up's saturated force)."""
+    env = gym.make(CART, scenario="gp")
+    agent = PseudospectralMPC.from_env(env, scheme="rti-split")
+    planner = agent._planner()
+    assert isinstance(planner.qp_solver, ActiveSetQP)
+    reference = PseudospectralMPC.from_env(env, scheme="rti")._planner()
+    obs, _ = env.reset(seed=0)
+    shifted_set_iterations = []
+    for _ in range(60):
+        u = agent.act(obs)
+        obs, *_ = env.step(u)
+        prep, previous = planner._prepared, agent.plan
+        if prep is None or previous.solution.status != "RTI":
+            continue
+        x_pred = prep["w_s"][:obs.size].copy()
+        fed = planner._feedback(prep["w_s"], x_pred, prep["h"], prep["grad"], prep["a"],
+                                prep["g"], prep["p"], *prep["guess"])
+        one_call = reference._step(previous.solution.nlp_x, x_pred,
+                                   planner.planning.param_values())
+        if one_call[5][0] >= 1:  # the active-set iterations settled (0: the fallback)
+            np.testing.assert_allclose(fed[0], one_call[0], rtol=1e-8, atol=1e-9)
+            assert fed[5][0] == 1
+            shifted_set_iterations.append(int(one_call[5][0]))
+    assert len(shifted_set_iterations) > 30 and max(shifted_set_iterations) > 1
 
 
 def test_split_rti_closed_loop_records_latency_and_preparation():

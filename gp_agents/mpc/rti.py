@@ -208,21 +208,42 @@ class RTIPlanner(Planner):
                            ["w_prev", "x0", "p"], names)
         return shift, qp_step, step
 
-    def _qp_outputs(self, w_s: ca.MX, x0: ca.MX, H: ca.MX, grad: ca.MX, J: ca.MX, g0: ca.MX,
-                    P: ca.MX) -> list[ca.MX]:
+    def _qp_data(self, w_s: ca.MX, x0: ca.MX, H: ca.MX, grad: ca.MX, J: ca.MX,
+                 g0: ca.MX) -> dict[str, ca.MX]:
         """The Gauss-Newton QP in the step ``dw`` about ``w_s`` (Hessian ``H``, gradient
-        ``grad``, constraint Jacobian ``J`` and values ``g0`` there, X(t0) fixed to ``x0``),
-        solved symbolically, and what it gives: :data:`STEP_OUTPUTS` (the active-set
-        iterations are 0 when it fell back, -1 for a plain plugin)."""
+        ``grad``, constraint Jacobian ``J`` and values ``g0`` there, X(t0) fixed to ``x0``)
+        as CasADi conic data (``h, g, a, lba, uba, lbx, ubx``)."""
         ocp, n = self.ocp, self.planning.model.n_states
         lbx, ubx, lbg, ubg = (ca.DM(b) for b in ocp.bounds())
         lo, hi = ca.vertcat(x0, lbx[n:]), ca.vertcat(x0, ubx[n:])
-        data = dict(h=H, g=grad, a=J, lba=lbg - g0, uba=ubg - g0, lbx=lo - w_s, ubx=hi - w_s)
+        return dict(h=H, g=grad, a=J, lba=lbg - g0, uba=ubg - g0, lbx=lo - w_s, ubx=hi - w_s)
+
+    def _active_at(self, data: dict[str, ca.MX], dw: ca.MX | None = None
+                   ) -> tuple[ca.MX, ca.MX]:
+        """The active-set guess ``(guess_x, guess_a)`` of the QP ``data``: the bounds the
+        step ``dw`` (default 0: the shifted plan itself) sits at, within the active-set
+        solver's tolerance, and the rows its constraint values sit at (-1 lower, +1 upper)."""
+        assert isinstance(self.qp_solver, ActiveSetQP)
+        tol = self.qp_solver.tol
+        if dw is None:
+            return ((data["ubx"] <= tol) - (data["lbx"] >= -tol),
+                    (data["uba"] <= tol) - (data["lba"] >= -tol))
+        r = ca.mtimes(data["a"], dw)
+        return ((data["ubx"] - dw <= tol) - (data["lbx"] - dw >= -tol),
+                (data["uba"] - r <= tol) - (data["lba"] - r >= -tol))
+
+    def _qp_outputs(self, w_s: ca.MX, x0: ca.MX, H: ca.MX, grad: ca.MX, J: ca.MX, g0: ca.MX,
+                    P: ca.MX, guess: tuple[ca.MX, ca.MX] | None = None) -> list[ca.MX]:
+        """The QP of :meth:`_qp_data` solved symbolically, and what it gives:
+        :data:`STEP_OUTPUTS` (the active-set iterations are 0 when it fell back, -1 for a
+        plain plugin). ``guess``: the active-set solver's initial ``(guess_x, guess_a)``
+        (default: the bounds and rows the shifted plan sits at, :meth:`_active_at`)."""
+        ocp = self.ocp
+        lbg, ubg = (ca.DM(b) for b in ocp.bounds()[2:])
+        data = self._qp_data(w_s, x0, H, grad, J, g0)
         if isinstance(self.qp_solver, ActiveSetQP):
-            # the guess: the bounds the shifted plan sits at, the rows its constraints sit at
-            tol = self.qp_solver.tol
-            res = self._qp(**data, guess_x=(data["ubx"] <= tol) - (data["lbx"] >= -tol),
-                           guess_a=(data["uba"] <= tol) - (data["lba"] >= -tol))
+            guess_x, guess_a = guess if guess is not None else self._active_at(data)
+            res = self._qp(**data, guess_x=guess_x, guess_a=guess_a)
             iterations = res["iterations"]
         else:
             res = self._qp(**data, x0=ca.DM.zeros(ocp.n_variables))
