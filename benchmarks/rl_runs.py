@@ -121,6 +121,15 @@ PLANS: dict[str, Plan] = {
         steps=300_000, seeds=(101,), reward="bounded-shift", time_feature=True,
         root=PILOTS / "zoo_net", seed_dirs=False,
         description="sweep: the zoo's [400, 300] network, bounded shift + time feature"),
+    # the sweep's third variant: TQC (sb3-contrib; the zoo tunes it on the same swing-up task)
+    # with the zoo's TQC entry and the same deviations as sac-swingup; algorithm seed 102,
+    # learning-curve seeds only
+    "sweep_cartpole_tqc": Plan(
+        env="cartpole", scenario="online", algo="tqc", hyperparams="tqc-swingup",
+        steps=300_000, seeds=(102,), reward="bounded-shift", time_feature=True,
+        root=PILOTS / "tqc", seed_dirs=False,
+        description="sweep: TQC (sb3-contrib) with the zoo's swing-up TQC settings, bounded "
+                    "shift + time feature"),
     # the cart-pole SAC baseline: rl-zoo3's InvertedPendulumSwingupBulletEnv-v0 SAC settings
     # and step budget (3e5), 5 seeds; bounded shift + time feature (the pilot showed no harm
     # at 5e4 steps; the shift ranks policies exactly as the task's reward does, and the zoo's

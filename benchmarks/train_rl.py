@@ -1,4 +1,5 @@
-"""Train an SB3 baseline (SAC or PPO) on a registered ``gp_envs`` env, resumably; save an RLAgent.
+"""Train an SB3 baseline (SAC, PPO, TQC) on a registered ``gp_envs`` env, resumably; save
+an RLAgent.
 
 The env is made with ``gym.make`` (same reward, same time limit as every other controller); the
 agent's preprocessing (:mod:`gp_agents.rl`: angle -> cos/sin, optional time feature,
@@ -185,6 +186,34 @@ HYPERPARAMETERS["sac-swingup-zoo-net"] = {
     "policy_kwargs": {"log_std_init": -3, "net_arch": [400, 300]},
 }
 
+# rl-baselines3-zoo tqc.yml, InvertedPendulumSwingupBulletEnv-v0 (n_timesteps 3e5; TQC's
+# defaults: 2 critics of 25 quantiles, the top 2 per net dropped), with sac-swingup's declared
+# deviation (net_arch [64, 64] instead of [400, 300]) and additions; the zoo's TQC entry
+# differs from its SAC one in train_freq and gradient_steps (64 against 8).
+HYPERPARAMETERS["tqc-swingup"] = {
+    "algo": "tqc",
+    "source": "rl-baselines3-zoo hyperparams/tqc.yml InvertedPendulumSwingupBulletEnv-v0 "
+              "(lr 7.3e-4, buffer 3e5, batch 256, ent_coef auto, gamma 0.98, tau 0.02, "
+              "train_freq 64, gradient_steps 64, learning_starts 1e4, gSDE, log_std_init -3, "
+              "net_arch [400, 300]; n_timesteps 3e5; TQC defaults otherwise); changes: "
+              "net_arch [64, 64] (as sac-swingup); additions: obs normalization "
+              "(VecNormalize), angle cos/sin features",
+    "n_envs": 1,
+    "norm_obs": True,
+    "norm_reward": False,
+    "learning_rate": 7.3e-4,
+    "buffer_size": 300_000,
+    "learning_starts": 10_000,
+    "batch_size": 256,
+    "tau": 0.02,
+    "gamma": 0.98,
+    "train_freq": 64,
+    "gradient_steps": 64,
+    "ent_coef": "auto",
+    "use_sde": True,
+    "policy_kwargs": {"log_std_init": -3, "net_arch": [64, 64]},
+}
+
 _ENV_SIDE = ("algo", "source", "n_envs", "norm_obs", "norm_reward")
 
 CURVE_FIELDS = ("timesteps", "wall_time_s", "success_rate", "mean_cost", "std_cost",
@@ -369,7 +398,7 @@ def train(env: str, scenario: str, algo: str, steps: int, seed: int, out: Path,
     Args:
         env: short name (:data:`ENV_SHORT_NAMES`) or registered env id.
         scenario: the env's scenario.
-        algo: ``"sac"`` or ``"ppo"``.
+        algo: a key of :data:`gp_agents.rl.ALGORITHMS` (``"sac"``, ``"ppo"``, ``"tqc"``).
         steps: total env steps (summed over sub-envs; rounded up to whole rollouts).
         seed: seeds the model (torch, numpy) and the training envs' resets.
         out: run directory (model, metadata, learning curve, ``checkpoints/``).

@@ -1,8 +1,8 @@
 """Model-free RL baseline (stable-baselines3) behind the same ``act(obs)`` interface as the MPC.
 
-An :class:`RLAgent` is a frozen SB3 policy (SAC or PPO) plus the preprocessing it was trained
-with, so it runs in the plain Gymnasium loop on the registered env exactly as ``gym.make``
-returns it::
+An :class:`RLAgent` is a frozen SB3 policy (SAC, PPO, or sb3-contrib's TQC) plus the
+preprocessing it was trained with, so it runs in the plain Gymnasium loop on the registered env
+exactly as ``gym.make`` returns it::
 
     env = gym.make("gp_envs/CartPoleSwingUp-v0", scenario="online")
     agent = RLAgent.load("benchmarks/models/cartpole/sac", env)  # a shipped policy, from any cwd
@@ -71,6 +71,7 @@ import numpy as np
 import stable_baselines3
 import torch
 from gymnasium import spaces
+from sb3_contrib import TQC
 from stable_baselines3 import PPO, SAC
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.monitor import Monitor
@@ -83,8 +84,8 @@ __all__ = ["ALGORITHMS", "AngleFeatures", "BoundedShiftReward", "GoalBonusReward
            "resolve_model_dir", "rollout", "set_env_state", "shipped_models",
            "shipped_models_dir", "termination_terms", "wrap_env"]
 
-ALGORITHMS: dict[str, type[BaseAlgorithm]] = {"sac": SAC, "ppo": PPO}
-"""Supported SB3 algorithms by lower-case name."""
+ALGORITHMS: dict[str, type[BaseAlgorithm]] = {"sac": SAC, "ppo": PPO, "tqc": TQC}
+"""Supported algorithms by lower-case name (TQC from sb3-contrib)."""
 
 MODEL_FILE = "model.zip"
 VECNORM_FILE = "vecnormalize.pkl"
@@ -540,7 +541,7 @@ class RLAgent:
 
         Args:
             env: the env (unwrapped by us; ``gym.make`` wrappers are fine).
-            algo: ``"sac"`` or ``"ppo"``.
+            algo: a key of :data:`ALGORITHMS`.
             extra: further fields (``training_steps``, ``seed``, ``hyperparameters``, ...).
         """
         if env.spec is None:

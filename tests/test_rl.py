@@ -382,6 +382,27 @@ def test_resumed_ppo_is_bit_identical(tmp_path: Path) -> None:
                                   resumed.obs_normalizer.ret_rms.var)
 
 
+def test_resumed_tqc_is_bit_identical_and_loads(tmp_path: Path) -> None:
+    """sb3-contrib's TQC (preset tqc-swingup) through the same resumable training and loading
+    as SAC: interrupted and resumed equals one go, and the saved agent acts as its policy."""
+    kw = {"eval_freq": 128, "eval_episodes": 1, "checkpoint_freq": 128, "progress": False,
+          "echo": lambda _m: None, "hyperparams": "tqc-swingup", "reward": "bounded-shift",
+          "time_feature": True,
+          "overrides": {"learning_starts": 64, "buffer_size": 5000, "train_freq": 16,
+                        "gradient_steps": 4}}
+    whole = train("cartpole", "online", "tqc", 384, seed=3, out=tmp_path / "a", **kw)
+    train("cartpole", "online", "tqc", 384, seed=3, out=tmp_path / "b", stop_after=128, **kw)
+    resumed = train("cartpole", "online", "tqc", 384, seed=3, out=tmp_path / "b", **kw)
+    assert _without_wall(_curve(tmp_path / "a")) == _without_wall(_curve(tmp_path / "b"))
+    pa, pb = whole.model.policy.state_dict(), resumed.model.policy.state_dict()
+    assert all(torch.equal(pa[k], pb[k]) for k in pa)
+    env = gym.make("gp_envs/CartPoleSwingUp-v0", scenario="online")
+    agent = RLAgent.load(tmp_path / "a", env)
+    assert agent.algo == "tqc" and type(agent.model).__name__ == "TQC"
+    obs, _ = env.reset(seed=0)
+    np.testing.assert_array_equal(agent.act(obs), whole.act(obs))
+
+
 def test_killed_cli_run_resumes_to_the_total(tmp_path: Path) -> None:
     out = tmp_path / "run"
     cmd = [sys.executable, "-m", "benchmarks.train_rl", "--env", "cartpole", "--scenario",
