@@ -191,6 +191,7 @@ HYPERPARAMETERS["sac-swingup-zoo-net"] = {
 # deviation (net_arch [64, 64] instead of [400, 300]) and additions; the zoo's TQC entry
 # differs from its SAC one in train_freq and gradient_steps (64 against 8).
 HYPERPARAMETERS["tqc-swingup"] = {
+    **HYPERPARAMETERS["sac-swingup"],
     "algo": "tqc",
     "source": "rl-baselines3-zoo hyperparams/tqc.yml InvertedPendulumSwingupBulletEnv-v0 "
               "(lr 7.3e-4, buffer 3e5, batch 256, ent_coef auto, gamma 0.98, tau 0.02, "
@@ -198,20 +199,8 @@ HYPERPARAMETERS["tqc-swingup"] = {
               "net_arch [400, 300]; n_timesteps 3e5; TQC defaults otherwise); changes: "
               "net_arch [64, 64] (as sac-swingup); additions: obs normalization "
               "(VecNormalize), angle cos/sin features",
-    "n_envs": 1,
-    "norm_obs": True,
-    "norm_reward": False,
-    "learning_rate": 7.3e-4,
-    "buffer_size": 300_000,
-    "learning_starts": 10_000,
-    "batch_size": 256,
-    "tau": 0.02,
-    "gamma": 0.98,
     "train_freq": 64,
     "gradient_steps": 64,
-    "ent_coef": "auto",
-    "use_sde": True,
-    "policy_kwargs": {"log_std_init": -3, "net_arch": [64, 64]},
 }
 
 _ENV_SIDE = ("algo", "source", "n_envs", "norm_obs", "norm_reward")
