@@ -232,6 +232,24 @@ def test_summary_position_error_max_does_not_depend_on_the_env_name() -> None:
     assert math.isnan(rows["dubins"]["final_position_error_max"])
 
 
+def test_split_latency_is_act_minus_preparation_and_its_accepted_median_skips_rejections(
+        ) -> None:
+    trial = _episode("quadrotor", "ssgp-mpc-rti-split", n=6)
+    act = np.array([9.0, 2.0, 3.0, 40.0, 4.0, 50.0]) * 1e-3  # seconds
+    preparation = np.array([0.0, 1.0, 1.0, 1.0, 1.0, 1.0]) * 1e-3
+    trial.arrays.update({
+        "diag_replanned": np.array([False, True, True, True, True, True]),
+        "diag_solve_time": act / 2, "diag_act_time": act,
+        "diag_preparation_time": preparation,
+        "diag_status": np.array(["", "RTI", "RTI", "RTI rejected (0.2), Solve_Succeeded",
+                                 "RTI", "RTI rejected (0.3), Solve_Succeeded"])})
+    (row,) = report.summarize("x", [trial])
+    # latencies of the replanning steps: 1, 2, 39, 3, 49 ms; accepted: 1, 2, 3 ms
+    assert row["latency_median_ms"] == pytest.approx(3.0)
+    assert row["accepted_latency_median_ms"] == pytest.approx(2.0)
+    assert row["preparation_median_ms"] == pytest.approx(1.0)
+
+
 # ----------------------------------------------------------------------------- end to end
 def test_a_tiny_real_run_draws_the_control_period_units_and_the_dubins_paths(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
