@@ -10,6 +10,10 @@ A median alone hides a solver that is fast on easy QPs and slow or failing on th
 Run (one core)::
 
     OMP_NUM_THREADS=1 python -m benchmarks.rti_qp_solvers [--systems dubins] [--seeds 100,101]
+
+``--residual-tols 1e-9,1e-7`` runs every ``active-set:<plugin>`` solver once per value of its
+``residual_tol`` (the linear solves' accuracy below which one refinement step, a second
+factorization, follows; :class:`gp_agents.mpc.active_set.ActiveSetQP`).
 """
 
 from __future__ import annotations
@@ -25,7 +29,8 @@ import numpy as np
 import gp_envs
 from gp_agents import PseudospectralMPC
 from gp_agents.agent import rollout_lockstep
-from gp_agents.mpc.rti import ACTIVE_SET_PREFIX, resolve_qp_solver
+from gp_agents.mpc.active_set import ActiveSetQP
+from gp_agents.mpc.rti import ACTIVE_SET_PREFIX, QP_SOLVER_OPTIONS, resolve_qp_solver
 
 SOLVERS = ("osqp", "proxqp", "qrqp", "piqp", "qpoases", "active-set:proxqp", "active-set:piqp",
            "active-set:qrqp")
@@ -45,6 +50,9 @@ def main(argv: list[str] | None = None) -> None:
                         help="comma-separated env seeds (default: the tuning seeds 100-102)")
     parser.add_argument("--solvers", default=",".join(SOLVERS),
                         help=f"comma-separated CasADi QP plugins (default: {','.join(SOLVERS)})")
+    parser.add_argument("--residual-tols", default="",
+                        help="comma-separated residual_tol values for the active-set solvers "
+                             "(default: the solver's own)")
     args = parser.parse_args(argv)
     names = [n for n in args.systems.split(",") if n]
     unknown = sorted(set(names) - set(gp_envs.SYSTEMS))
@@ -63,6 +71,22 @@ def main(argv: list[str] | None = None) -> None:
             missing.append(s)
     if missing or not solvers:
         parser.error(f"QP solver(s) not available in this CasADi: {missing}")
+    try:
+        tols = [float(t) for t in args.residual_tols.split(",") if t]
+    except ValueError:
+        parser.error(f"--residual-tols must be comma-separated numbers, got "
+                     f"{args.residual_tols!r}")
+    if any(not (np.isfinite(t) and t > 0) for t in tols):
+        parser.error(f"--residual-tols must be > 0, got {tols}")
+    variants: dict[str, str | ActiveSetQP] = {}
+    for s in solvers:
+        if s.startswith(ACTIVE_SET_PREFIX) and tols:
+            fallback = s[len(ACTIVE_SET_PREFIX):]
+            for t in tols:
+                variants[f"{s}, residual_tol {t:g}"] = ActiveSetQP(
+                    fallback, QP_SOLVER_OPTIONS.get(fallback, {}), residual_tol=t)
+        else:
+            variants[s] = s
     print(f"Seeds {', '.join(map(str, seeds))}; cost: mean over the seeds; steps pooled.\n")
     print("| env | QP solver | cost | rejected / RTI steps | QP fallbacks | median RTI step (ms) | "
           "p90 replanning act (ms) |")
@@ -71,13 +95,14 @@ def main(argv: list[str] | None = None) -> None:
         system = gp_envs.SYSTEMS[name]
         env_id, scenario = system.env_id, SCENARIOS.get(name, system.default_scenario)
         rows = {qp: dict(cost=[], rejected=0, steps=0, fallbacks=0, rti=[], act=[])
-                for qp in solvers}
+                for qp in variants}
         for seed in seeds:
             pairs = []
-            for qp in solvers:
+            for solver in variants.values():
                 env = gym.make(env_id, scenario=scenario)
-                pairs.append((env, PseudospectralMPC.from_env(env, scheme="rti", qp_solver=qp)))
-            for qp, (_, agent), ep in zip(solvers, pairs, rollout_lockstep(pairs, seed),
+                pairs.append((env, PseudospectralMPC.from_env(env, scheme="rti",
+                                                              qp_solver=solver)))
+            for qp, (_, agent), ep in zip(variants, pairs, rollout_lockstep(pairs, seed),
                                           strict=True):
                 d, row = agent.diagnostics_arrays(), rows[qp]
                 row["cost"].append(ep.cost)

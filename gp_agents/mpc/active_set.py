@@ -26,7 +26,14 @@ starting from the right set needs one linear solve. :class:`ActiveSetQP` does th
    a well-posed QP stated in large units to the fallback (tested), and refined the
    learned model's Dubins QPs, with their larger right-hand sides, often enough to cost a
    fifth of the split RTI's latency: 0.75 against 0.58 ms median, the nominal's 0.49
-   against 0.43 ms, on tuning seeds 100-102 in an ad-hoc timing not kept here.)
+   against 0.43 ms, on tuning seeds 100-102 in an ad-hoc timing not kept here.) The
+   refinement is a second factorization (CasADi's ``solve`` factorizes at every call), so
+   its threshold is the step's price: ``residual_tol`` 1e-7, chosen on tuning seeds
+   100-102 (``python -m benchmarks.rti_qp_solvers --residual-tols 1e-9,1e-8,1e-7,1e-6``,
+   ``benchmarks/results/rti_qp_solvers.md``), is the tightest of those values at which the
+   quadrotor's first solves mostly pass without it (median nominal RTI step 0.58 against
+   0.82 ms at 1e-9), with the same closed-loop costs and rejected steps as 1e-9 on the cart
+   pole, the quadrotor and the Dubins vehicle, and no more fallbacks (quadrotor 3 against 4).
    ``dw = F z + c``; the bounds' multipliers follow from stationarity.
 3. The next set, by the primal-dual rule: a free variable (row) beyond a bound becomes active
    at it, an active one whose multiplier has the wrong sign is released. An unchanged set is
@@ -70,7 +77,7 @@ class ActiveSetQP:
     """
 
     def __init__(self, fallback: str = "proxqp", fallback_options: Mapping[str, Any] | None = None,
-                 *, max_iter: int = 8, tol: float = 1e-9, residual_tol: float = 1e-9,
+                 *, max_iter: int = 8, tol: float = 1e-9, residual_tol: float = 1e-7,
                  regularization: float = 1e-10) -> None:
         if int(max_iter) < 1:
             raise ValueError(f"max_iter must be >= 1, got {max_iter}")
