@@ -60,9 +60,17 @@ class Preset:
 
 
 def episodes(controllers: Iterable[str], envs: Iterable[tuple[str, str]], seeds: Iterable[int],
-             max_steps: int | None = None) -> tuple[TrialSpec, ...]:
-    """Episode trials for every controller x (env, scenario) x seed."""
+             max_steps: int | None = None, *, interleave: bool = False
+             ) -> tuple[TrialSpec, ...]:
+    """Episode trials for every controller x (env, scenario) x seed.
+
+    ``interleave``: seed-major order (every controller's episode of a seed, then the next
+    seed), so that trials run in order meet a change of the machine's load alike: for
+    experiments whose step times are compared as ratios between controllers."""
     envs, seeds, controllers = list(envs), list(seeds), list(controllers)
+    if interleave:
+        return tuple(TrialSpec("episode", env, scenario, c, s, max_steps=max_steps)
+                     for env, scenario in envs for s in seeds for c in controllers)
     return tuple(TrialSpec("episode", env, scenario, c, s, max_steps=max_steps)
                  for env, scenario in envs for c in controllers for s in seeds)
 
@@ -272,9 +280,10 @@ def rti(seeds: Sequence[int] = tuple(range(10)),
         act_samples: Sequence[int] = (200, 5000)) -> Experiment:
     """The MPC acceptance runs with the real-time iteration next to the converged MPC."""
     specs = episodes((*RTI_CONTROLLERS, "oracle-mpc", "oracle-mpc-warm-duals", "oracle-mpc-rti"),
-                     [("cartpole", "online")], seeds)
-    specs += episodes(RTI_CONTROLLERS, [("quadrotor", "gp"), ("quadrotor", "online")], seeds)
-    specs += episodes(RTI_CONTROLLERS, [("dubins", "paper")], dubins_seeds)
+                     [("cartpole", "online")], seeds, interleave=True)
+    specs += episodes(RTI_CONTROLLERS, [("quadrotor", "gp"), ("quadrotor", "online")], seeds,
+                      interleave=True)
+    specs += episodes(RTI_CONTROLLERS, [("dubins", "paper")], dubins_seeds, interleave=True)
     specs += tuple(TrialSpec("ssgp-act-scaling", env, scenario, "ssgp-mpc-rti", 0, param=n)
                    for env, scenario in (("cartpole", "online"), ("quadrotor", "gp"),
                                          ("dubins", "paper"))
@@ -292,7 +301,8 @@ def rti(seeds: Sequence[int] = tuple(range(10)),
         "adjoint-corrected, `pattern`), "
         "each RTI also split into a preparation after the action and a feedback phase on the "
         "measurement (`-split`, `scheme='rti-split'`: its latency is the act time minus the "
-        "preparation), all in one run so that the step-time ratios compare like with like; "
+        "preparation), all in one run, the recipes interleaved seed by seed, so that the "
+        "step-time ratios compare like with like; "
         "and the SSGP RTI's step time after learning 200 vs 5,000 samples. Targets: nominal "
         "RTI step at most 0.15x the converged one (reported against both converged "
         "references); SSGP RTI at most 1.5x the nominal RTI; the same successes as the "

@@ -228,6 +228,24 @@ def test_no_preset_schedules_the_same_trial_twice() -> None:
             assert len(keys) == len(set(keys)), (name, exp.name)
 
 
+def test_interleaved_episodes_are_the_same_trials_seed_by_seed() -> None:
+    """The rti preset's step-time ratios compare recipes run back to back: every recipe's
+    episode of a seed before the next seed, and exactly the trials of the plain grid."""
+    from benchmarks.presets import episodes
+
+    grid = (["nominal-mpc", "ssgp-mpc"], [("cartpole", "online"), ("dubins", "paper")],
+            [0, 1, 2])
+    plain, mixed = episodes(*grid), episodes(*grid, interleave=True)
+    assert sorted(s.key for s in plain) == sorted(s.key for s in mixed)
+    assert [(s.env, s.seed, s.controller) for s in mixed[:4]] == [
+        ("cartpole", 0, "nominal-mpc"), ("cartpole", 0, "ssgp-mpc"),
+        ("cartpole", 1, "nominal-mpc"), ("cartpole", 1, "ssgp-mpc")]
+    rti = [s for s in get_preset("rti").experiments[0].specs if s.kind == "episode"]
+    for env, scenario in {(s.env, s.scenario) for s in rti}:
+        seeds = [s.seed for s in rti if (s.env, s.scenario) == (env, scenario)]
+        assert seeds == sorted(seeds), (env, scenario)
+
+
 def test_the_residual_trace_records_what_the_nominal_model_missed() -> None:
     """``benchmarks.residual_trace``: the step-0 row is the first transition of the benchmark's
     own episode (a separate build of it: same action, the residual model's target of that
