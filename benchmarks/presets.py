@@ -102,8 +102,9 @@ def custom_experiment(controllers: Sequence[str], envs: Sequence[str],
     for s in scenarios or ():
         check_name("scenario", s, sorted(valid))
     return Experiment(
-        "custom", "Custom run", "A user-chosen grid of controllers x envs x scenarios x seeds.",
-        episodes(controllers, pairs, seeds, max_steps),
+        "custom", "Custom run", "A user-chosen grid of controllers x envs x scenarios x seeds "
+        "(the controllers interleaved seed by seed).",
+        episodes(controllers, pairs, seeds, max_steps, interleave=True),
         ("summary", "trajectories", "paths", "step_times"))
 
 
