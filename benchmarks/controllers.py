@@ -34,10 +34,12 @@ one whose learner saturates its standardized inputs (``input_saturation``,
 :data:`gp_agents.learners.INPUT_SATURATION` standard deviations).
 
 Real-time-iteration variants (:data:`RTI_VARIANTS`, preset ``rti``): ``nominal-mpc-rti``,
-``oracle-mpc-rti``, ``ssgp-mpc-rti`` (``scheme="rti"``; the SSGP one with the GP linearized),
+``oracle-mpc-rti``, ``ssgp-mpc-rti`` (``scheme="rti"``; the SSGP one with the system's
+registered learned term, ``PlanningDefaults.rti_learned_dynamics``),
+``ssgp-mpc-rti-linearized`` (the GP linearized per node on every system),
 ``ssgp-mpc-rti-zero-order`` (the GP's value frozen per node, adjoint-corrected),
 ``ssgp-mpc-rti-pattern`` (the GP linearized on the nominal Jacobian pattern, the rest
-adjoint-corrected), and each of the four with ``-split`` (``scheme="rti-split"``:
+adjoint-corrected), and each of the five with ``-split`` (``scheme="rti-split"``:
 preparation after the action, feedback on the measurement);
 and their converged references warm-started with the previous multipliers
 (:data:`WARM_DUAL_VARIANTS`): ``nominal-mpc-warm-duals``, ``oracle-mpc-warm-duals``.
@@ -60,6 +62,7 @@ import gymnasium as gym
 
 import gp_envs
 from gp_agents.mpc import GPInNLP
+from gp_agents.mpc.controller import default_learned_dynamics
 from gp_envs.systems import SYSTEMS
 
 MODELS_DIR = Path(__file__).resolve().parent / "models"
@@ -239,10 +242,17 @@ RTI_VARIANTS: dict[str, ControllerRecipe] = dict([
          "Gauss-Newton SQP step per period after a converged cold start)"),
     _rti("oracle", "oracle", "oracle-mpc with a real-time iteration (scheme='rti')",
          oracle=True),
-    _rti("ssgp", "SSGP", "ssgp-mpc with a real-time iteration (scheme='rti'), the GP "
-         "linearized per node at the shifted plan (learned_dynamics='linearized')",
-         learner="ssgp", learned_dynamics="linearized"),
+    _rti("ssgp", "SSGP", "ssgp-mpc with a real-time iteration (scheme='rti'), the GP entering "
+         "the QP as the system's registered rti_learned_dynamics (PlanningDefaults: linearized "
+         "per node at the shifted plan; the quadrotor: on the nominal Jacobian pattern)",
+         learner="ssgp"),
 ])
+RTI_VARIANTS["ssgp-mpc-rti-linearized"] = ControllerRecipe(
+    "ssgp-mpc-rti-linearized", "SSGP MPC, RTI linearized", "mpc",
+    "ssgp-mpc-rti with the GP linearized per node at the shifted plan on every system "
+    "(learned_dynamics='linearized': its full Jacobian in the QP)",
+    learner="ssgp", learn_online=True,
+    settings=(("scheme", "rti"), ("learned_dynamics", "linearized")))
 RTI_VARIANTS["ssgp-mpc-rti-zero-order"] = ControllerRecipe(
     "ssgp-mpc-rti-zero-order", "SSGP MPC, RTI zero-order", "mpc",
     "ssgp-mpc-rti with the GP's value frozen per node (learned_dynamics='zero-order': the "
@@ -256,8 +266,8 @@ RTI_VARIANTS["ssgp-mpc-rti-pattern"] = ControllerRecipe(
     "gains, the dropped derivatives corrected with the previous multipliers)",
     learner="ssgp", learn_online=True,
     settings=(("scheme", "rti"), ("learned_dynamics", "linearized-pattern")))
-for _name in ("nominal-mpc-rti", "ssgp-mpc-rti", "ssgp-mpc-rti-zero-order",
-              "ssgp-mpc-rti-pattern"):
+for _name in ("nominal-mpc-rti", "ssgp-mpc-rti", "ssgp-mpc-rti-linearized",
+              "ssgp-mpc-rti-zero-order", "ssgp-mpc-rti-pattern"):
     _base = RTI_VARIANTS[_name]
     RTI_VARIANTS[f"{_name}-split"] = dataclasses.replace(
         _base, name=f"{_name}-split", label=f"{_base.label}, split",
@@ -266,6 +276,20 @@ for _name in ("nominal-mpc-rti", "ssgp-mpc-rti", "ssgp-mpc-rti-zero-order",
                     "feedback phase (the QP with the measured state; scheme='rti-split')",
         settings=tuple((k, "rti-split" if k == "scheme" else v) for k, v in _base.settings))
 """Real-time-iteration variants (issue: RTI), compared by the ``rti`` preset."""
+
+
+def learned_term(recipe: ControllerRecipe, system: str) -> str | None:
+    """The ``learned_dynamics`` name ``recipe``'s MPC uses on ``system`` (its own setting, else
+    :func:`gp_agents.mpc.controller.default_learned_dynamics` of its scheme and the system's
+    registration), or None for a recipe with no learner."""
+    if recipe.learner is None:
+        return None
+    settings = dict(recipe.settings)
+    if "learned_dynamics" in settings:
+        term = settings["learned_dynamics"]
+        return term if isinstance(term, str) else type(term).__name__
+    return default_learned_dynamics(settings.get("scheme", "converged"),
+                                    gp_envs.SYSTEMS[system].planning)
 
 WARM_DUAL_VARIANTS: dict[str, ControllerRecipe] = {
     f"{base}-mpc-warm-duals": ControllerRecipe(

@@ -17,6 +17,7 @@ from benchmarks.controllers import (
     N_INITIAL_POINTS,
     check_env_scenario,
     check_name,
+    learned_term,
 )
 from benchmarks.trial import Cell, TrialSpec
 
@@ -271,20 +272,34 @@ def linearized(seeds: Sequence[int] = tuple(range(10)),
 
 RTI_CONTROLLERS = ("nominal-mpc", "nominal-mpc-warm-duals", "nominal-mpc-rti",
                    "nominal-mpc-rti-split", "ssgp-mpc", "ssgp-mpc-rti", "ssgp-mpc-rti-split",
-                   "ssgp-mpc-rti-zero-order", "ssgp-mpc-rti-zero-order-split",
-                   "ssgp-mpc-rti-pattern", "ssgp-mpc-rti-pattern-split")
-"""The converged and real-time-iteration recipes the ``rti`` preset compares."""
+                   "ssgp-mpc-rti-zero-order", "ssgp-mpc-rti-zero-order-split")
+"""The converged and real-time-iteration recipes the ``rti`` preset runs on every system
+(``ssgp-mpc-rti``: the system's registered learned term), before :func:`rti_controllers`'
+alternatives."""
+RTI_LEARNED_TERMS = {"linearized": "ssgp-mpc-rti-linearized",
+                     "linearized-pattern": "ssgp-mpc-rti-pattern"}
+"""The explicit one-call SSGP RTI recipe of each linearized learned term."""
+
+
+def rti_controllers(system: str) -> tuple[str, ...]:
+    """:data:`RTI_CONTROLLERS` and, for each linearized learned term other than ``system``'s
+    registered one (which ``ssgp-mpc-rti`` already runs), its explicit recipe, one call and
+    split: every term is run once per system, none twice."""
+    default = learned_term(CONTROLLERS["ssgp-mpc-rti"], system)
+    others = [r for term, r in RTI_LEARNED_TERMS.items() if term != default]
+    return (*RTI_CONTROLLERS, *(f"{r}{tail}" for r in others for tail in ("", "-split")))
 
 
 def rti(seeds: Sequence[int] = tuple(range(10)),
         dubins_seeds: Sequence[int] = tuple(range(50)),
         act_samples: Sequence[int] = (200, 5000)) -> Experiment:
     """The MPC acceptance runs with the real-time iteration next to the converged MPC."""
-    specs = episodes((*RTI_CONTROLLERS, "oracle-mpc", "oracle-mpc-warm-duals", "oracle-mpc-rti"),
-                     [("cartpole", "online")], seeds, interleave=True)
-    specs += episodes(RTI_CONTROLLERS, [("quadrotor", "gp"), ("quadrotor", "online")], seeds,
+    specs = episodes((*rti_controllers("cartpole"), "oracle-mpc", "oracle-mpc-warm-duals",
+                      "oracle-mpc-rti"), [("cartpole", "online")], seeds, interleave=True)
+    specs += episodes(rti_controllers("quadrotor"), [("quadrotor", "gp"), ("quadrotor", "online")],
+                      seeds, interleave=True)
+    specs += episodes(rti_controllers("dubins"), [("dubins", "paper")], dubins_seeds,
                       interleave=True)
-    specs += episodes(RTI_CONTROLLERS, [("dubins", "paper")], dubins_seeds, interleave=True)
     specs += tuple(TrialSpec("ssgp-act-scaling", env, scenario, "ssgp-mpc-rti", 0, param=n)
                    for env, scenario in (("cartpole", "online"), ("quadrotor", "gp"),
                                          ("dubins", "paper"))
@@ -296,10 +311,12 @@ def rti(seeds: Sequence[int] = tuple(range(10)),
         "(`scheme='converged'`; nominal and oracle also with warm-started multipliers, "
         "`warm_start_duals=True`, the faster converged reference) and as a real-time "
         "iteration (`scheme='rti'`: a converged cold start, then one Gauss-Newton SQP step "
-        "per period; the SSGP one with the GP linearized per node at the shifted plan, or "
-        "with its value frozen per node and the gradient adjoint-corrected, `zero-order`, or "
-        "linearized on the nominal model's Jacobian pattern with the dropped derivatives "
-        "adjoint-corrected, `pattern`), "
+        "per period; the SSGP one with the system's registered learned term, "
+        "`PlanningDefaults.rti_learned_dynamics`, and the other linearized term explicitly: "
+        "the GP linearized per node at the shifted plan, `linearized`, or linearized on the "
+        "nominal model's Jacobian pattern with the dropped derivatives adjoint-corrected, "
+        "`pattern`; and with its value frozen per node and the gradient adjoint-corrected, "
+        "`zero-order`), "
         "each RTI also split into a preparation after the action and a feedback phase on the "
         "measurement (`-split`, `scheme='rti-split'`: its latency is the act time minus the "
         "preparation), all in one run, the recipes interleaved seed by seed, so that the "

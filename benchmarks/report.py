@@ -43,7 +43,7 @@ from matplotlib.ticker import (
 )
 
 from benchmarks.compute import STEP_SCALING
-from benchmarks.controllers import CONTROLLERS, ENVS, MODELS_DIR
+from benchmarks.controllers import CONTROLLERS, ENVS, MODELS_DIR, learned_term
 from benchmarks.presets import MPC_BASES, Experiment, Preset
 from benchmarks.runner import load_arrays, load_record, trial_path
 from benchmarks.styles import EPISODIC, RTI, WARM_DUALS, Style, axis_label, style
@@ -1130,7 +1130,7 @@ def _linearization_errors(ctx: Context, exp: Experiment) -> list[str]:
         if t.spec.kind != "episode" or not t.ok or "diag_linearization_error" not in t.arrays:
             continue
         recipe = CONTROLLERS.get(t.spec.controller)
-        if recipe is None or dict(recipe.settings).get("learned_dynamics") not in (
+        if recipe is None or learned_term(recipe, t.spec.env) not in (
                 "linearized", "linearized-pattern"):
             continue
         err = t.arrays["diag_linearization_error"][t.arrays["diag_replanned"].astype(bool)]

@@ -104,7 +104,7 @@ STYLES: dict[str, Style] = {
     "ssgp-mpc-linearized-adaptive": Style(_SSGP_LINEARIZED_ADAPTIVE, RECEDING, "$l$"),
     "ssgp-mpc-linearized-guarded": Style(_SSGP_LINEARIZED_GUARDED, RECEDING, "$g$"),
     "ssgp-mpc-linearized-saturated": Style(_SSGP_LINEARIZED_SATURATED, RECEDING, "$t$"),
-    # the SSGP RTI plans with the residual linearized per node, as ssgp-mpc-linearized does
+    # the SSGP RTI plans with the system's registered learned term (a linearized residual)
     "ssgp-mpc-rti": Style(_SSGP_LINEARIZED, RTI, "8"),
     # the zero-order RTI plans with the residual's value only; "-split": preparation/feedback
     "ssgp-mpc-rti-zero-order": Style(_SSGP, RTI, "$z$"),
@@ -114,6 +114,9 @@ STYLES: dict[str, Style] = {
     # the pattern RTI: the linearized residual on the nominal Jacobian pattern
     "ssgp-mpc-rti-pattern": Style(_SSGP_LINEARIZED, RTI, "$p$"),
     "ssgp-mpc-rti-pattern-split": Style(_SSGP_LINEARIZED, RTI, "$P$"),
+    # the RTI linearized on every system (ssgp-mpc-rti: the system's registered term)
+    "ssgp-mpc-rti-linearized": Style(_SSGP_LINEARIZED, RTI, "$r$"),
+    "ssgp-mpc-rti-linearized-split": Style(_SSGP_LINEARIZED, RTI, "$R$"),
     "sac": Style(_SAC, RECEDING, "*"),
     "ppo": Style(_PPO, RECEDING, "X"),
 }

@@ -71,6 +71,11 @@ class PlanningDefaults:
             plugin as its fallback; ``gp_agents.mpc.rti.resolve_qp_solver``).
         levenberg_marquardt: the real-time iteration's ``mu`` >= 0 on the QP Hessian's
             diagonal (``gp_agents.mpc.rti.RTIPlanner``); 0: the plain Gauss-Newton step.
+        rti_learned_dynamics: how a learned residual enters the real-time iteration's QP when
+            the MPC is given none: a ``learned_dynamics`` name of
+            ``gp_agents.mpc.controller.LEARNED_TERMS`` (checked when an MPC is built), e.g.
+            ``"linearized"`` (the residual linearized per node) or ``"linearized-pattern"``
+            (only its entries on the nominal Jacobian's pattern).
     """
 
     horizon: float
@@ -79,6 +84,7 @@ class PlanningDefaults:
     nodes_per_period: int = 3
     qp_solver: str = "active-set:proxqp"
     levenberg_marquardt: float = 0.0
+    rti_learned_dynamics: str = "linearized"
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.horizon) and self.horizon > 0):
@@ -92,6 +98,9 @@ class PlanningDefaults:
         if not (np.isfinite(self.levenberg_marquardt) and self.levenberg_marquardt >= 0):
             raise ValueError(f"PlanningDefaults: levenberg_marquardt must be a finite number "
                              f">= 0, got {self.levenberg_marquardt!r}")
+        if not (isinstance(self.rti_learned_dynamics, str) and self.rti_learned_dynamics):
+            raise ValueError(f"PlanningDefaults: rti_learned_dynamics must be a learned_dynamics "
+                             f"name, got {self.rti_learned_dynamics!r}")
 
 
 @dataclass(frozen=True)

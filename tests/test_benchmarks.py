@@ -323,3 +323,51 @@ def test_the_levenberg_marquardt_sweep_counts_what_its_episodes_did() -> None:
     for argv in (["--mu", "-0.1"], ["--mu", "x"], ["--recipes", "nominal-mpc"]):
         with pytest.raises(SystemExit):
             lm.main(argv)
+
+
+def test_the_rti_preset_runs_every_learned_term_once_per_system() -> None:
+    """``ssgp-mpc-rti`` is the system's registered learned term; the preset adds the other
+    linearized term explicitly (one call and split), so each term runs once per system and the
+    report's linearization table knows which term a recipe used."""
+    from benchmarks.controllers import CONTROLLERS, learned_term
+    from benchmarks.presets import RTI_CONTROLLERS, rti_controllers
+
+    assert learned_term(CONTROLLERS["ssgp-mpc-rti"], "quadrotor") == "linearized-pattern"
+    assert learned_term(CONTROLLERS["ssgp-mpc-rti-split"], "cartpole") == "linearized"
+    assert learned_term(CONTROLLERS["ssgp-mpc-rti-pattern"], "cartpole") == "linearized-pattern"
+    assert learned_term(CONTROLLERS["ssgp-mpc"], "dubins") == "exact"
+    assert learned_term(CONTROLLERS["nominal-mpc-rti"], "dubins") is None
+    for system in ("cartpole", "quadrotor", "dubins"):
+        names = rti_controllers(system)
+        assert len(names) == len(set(names)) and names[:len(RTI_CONTROLLERS)] == RTI_CONTROLLERS
+        terms = [learned_term(CONTROLLERS[n], system) for n in names
+                 if n.startswith("ssgp-mpc-rti") and not n.endswith("-split")]
+        assert sorted(terms) == ["linearized", "linearized-pattern", "zero-order"], system
+    rti = [s for s in get_preset("rti").experiments[0].specs if s.kind == "episode"]
+    quad = {s.controller for s in rti if s.env == "quadrotor"}
+    assert "ssgp-mpc-rti-linearized-split" in quad and "ssgp-mpc-rti-pattern" not in quad
+
+
+def test_the_learned_term_comparison_measures_split_latency_against_the_nominal() -> None:
+    """``benchmarks.rti_learned_term``: latency is act minus preparation over the replanning
+    steps after the first; the table's ratio is per seed against the reference recipe; a
+    one-call RTI (no preparation) or an unknown system is refused."""
+    from benchmarks import rti_learned_term as lt
+
+    diag = {"replanned": np.array([1, 0, 1, 1, 1]), "act_time": np.array([9.0, 1, 3, 4, 5]),
+            "preparation_time": np.array([1.0, 0, 1, 1, 1])}
+    assert lt.episode_latency(diag) == 3.0  # median of 2, 3, 4: the first replan left out
+    with pytest.raises(ValueError, match="not a split RTI"):
+        lt.episode_latency({"replanned": diag["replanned"], "act_time": diag["act_time"]})
+    with pytest.raises(ValueError, match="fewer than two"):
+        lt.episode_latency({**diag, "replanned": np.array([1, 0, 0, 0, 0])})
+    rows = [dict(system="s", scenario="c", recipe=r, seed=k, success=True, cost=1.0,
+                 latency=lat) for r, k, lat in (("ref", 0, 1.0), ("ref", 1, 2.0),
+                                                ("x", 0, 1.5), ("x", 1, 2.0))]
+    text = lt.table(rows, reference="ref")
+    assert "| s | `c` | x | 2/2 | 1.00 | 1750.00 | 1.25x [1.00, 1.50] |" in text
+    rows = lt.run("pendulum", "damped", [0], recipes=lt.RECIPES[:2], progress=False)
+    assert [r["recipe"] for r in rows] == list(lt.RECIPES[:2])
+    assert all(r["latency"] > 0 and np.isfinite(r["cost"]) for r in rows)
+    with pytest.raises(SystemExit):
+        lt.main(["--systems", "nope"])

@@ -223,6 +223,32 @@ def test_linearized_nlp_has_no_learner_parameters_and_is_built_once():
         PseudospectralMPC.from_env(env, learned_dynamics=3)
 
 
+
+def test_without_a_learned_term_converged_puts_the_gp_in_the_nlp_and_rti_the_systems_term():
+    """``learned_dynamics=None``: the paper's OCP (the GP inside the NLP) when converged; for
+    the real-time iterations the system's registered ``rti_learned_dynamics`` (the quadrotor
+    registers the pattern term, the others the full linearization); an explicit name wins;
+    a registered name that is no learned term is a named error."""
+    from gp_agents.mpc import PatternLinearizedGP
+    from gp_agents.mpc.controller import default_learned_dynamics
+    from gp_envs.systems import PlanningDefaults
+
+    for env_id, rti_term in ((QUAD, PatternLinearizedGP), (CART, LinearizedGP),
+                             (DUBINS, LinearizedGP)):
+        env = gym.make(env_id)
+        assert type(PseudospectralMPC.from_env(env, online_ssgp(5)).term) is GPInNLP
+        for scheme in ("rti", "rti-split"):
+            agent = PseudospectralMPC.from_env(env, online_ssgp(5), scheme=scheme)
+            assert type(agent.term) is rti_term, (env_id, scheme)
+        explicit = PseudospectralMPC.from_env(env, online_ssgp(5), scheme="rti",
+                                              learned_dynamics="zero-order")
+        assert explicit.term.name == "zero-order"
+    assert default_learned_dynamics("rti", None) == "linearized"
+    assert default_learned_dynamics("converged", None) == "exact"
+    with pytest.raises(ValueError, match="rti_learned_dynamics 'taylor'"):
+        default_learned_dynamics("rti", PlanningDefaults(1.0, 8, rti_learned_dynamics="taylor"))
+
+
 # ------------------------------------------------------------------------ agent contract
 def test_act_returns_float32_in_bounds_and_rejects_bad_observations():
     env = gym.make(CART)

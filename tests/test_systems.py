@@ -179,7 +179,9 @@ def test_registration_refuses_inconsistent_systems(user_system):
     ({"horizon": 1.0, "n_nodes": 0}, "n_nodes"), ({"horizon": 1.0, "n_nodes": 2.5}, "n_nodes"),
     ({"horizon": 1.0, "n_nodes": 8, "n_intervals": 0}, "n_intervals"),
     ({"horizon": 1.0, "n_nodes": 8, "levenberg_marquardt": -1e-3}, "levenberg_marquardt"),
-    ({"horizon": 1.0, "n_nodes": 8, "levenberg_marquardt": np.inf}, "levenberg_marquardt")])
+    ({"horizon": 1.0, "n_nodes": 8, "levenberg_marquardt": np.inf}, "levenberg_marquardt"),
+    ({"horizon": 1.0, "n_nodes": 8, "rti_learned_dynamics": ""}, "rti_learned_dynamics"),
+    ({"horizon": 1.0, "n_nodes": 8, "rti_learned_dynamics": None}, "rti_learned_dynamics")])
 def test_planning_defaults_are_checked(kwargs, message):
     with pytest.raises(ValueError, match=message):
         PlanningDefaults(**kwargs)

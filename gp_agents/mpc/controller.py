@@ -42,6 +42,7 @@ from gp_agents.mpc.rti_split import SplitRTIPlanner
 from gp_agents.mpc.schedule import Episodic, RecedingHorizon, planning_defaults
 from gp_agents.residual import ResidualModel
 from gp_envs.model import ControlModel
+from gp_envs.systems import PlanningDefaults
 
 SCHEMES: dict[str, type[Planner]] = {"converged": Planner, "rti": RTIPlanner,
                                      "rti-split": SplitRTIPlanner}
@@ -53,6 +54,23 @@ LEARNED_TERMS: dict[str, type[LearnedTerm]] = {"exact": GPInNLP, "linearized": L
 """``learned_dynamics`` names: the GP inside the NLP (the paper's OCP), linearized per node,
 linearized on the nominal model's Jacobian pattern (the rest adjoint-corrected in the RTI), or
 its value frozen per node (with the RTI's adjoint correction)."""
+
+
+def default_learned_dynamics(scheme: str, defaults: PlanningDefaults | None) -> str:
+    """The ``learned_dynamics`` name an MPC of ``scheme`` uses when given none: ``"exact"`` (the
+    paper's OCP, the GP inside the NLP) for ``"converged"``; for the real-time iterations, the
+    system's registered ``rti_learned_dynamics`` (``"linearized"`` for an unregistered system).
+
+    Raises:
+        ValueError: the registered name is not one of :data:`LEARNED_TERMS`.
+    """
+    if scheme == "converged":
+        return "exact"
+    name = defaults.rti_learned_dynamics if defaults is not None else "linearized"
+    if name not in LEARNED_TERMS:
+        raise ValueError(f"the system's PlanningDefaults.rti_learned_dynamics {name!r} is not "
+                         f"one of {list(LEARNED_TERMS)}")
+    return name
 
 
 class EnvNominalModel:
@@ -101,6 +119,8 @@ class PseudospectralMPC:
             with the multipliers), or a configured term
             instance (e.g.
             ``LinearizedGP(max_linearizations=3)``, ``GPInNLP(hessian="nominal")``; copied).
+            None: :func:`default_learned_dynamics` (``"exact"`` when converged; the system's
+            registered ``rti_learned_dynamics`` for the RTI schemes).
         solver, solver_options, jit: the NLP solver (:class:`~gp_agents.mpc.planner.Planner`).
         max_iterations: iteration cap of one solve; the only cap (no wall-clock limit).
         state_margin, state_penalty, obstacle_margin: :class:`~gp_agents.mpc.ocp.Constraints`.
@@ -134,7 +154,7 @@ class PseudospectralMPC:
                  learn_online: bool = True, uncertain_indices: tuple[int, ...] | None = None,
                  input_indices: tuple[int, ...] | Literal["model"] | None = None,
                  sensitivities: bool = False, uncertainty_radius: float = 0.0,
-                 learned_dynamics: str | LearnedTerm = "exact", solver: str = "ipopt",
+                 learned_dynamics: str | LearnedTerm | None = None, solver: str = "ipopt",
                  solver_options: Mapping[str, Any] | None = None, max_iterations: int = 500,
                  state_margin: float = 0.05, state_penalty: float | None = 1e4,
                  obstacle_margin: float = 0.1, jit: bool = False,
@@ -171,6 +191,8 @@ class PseudospectralMPC:
             levenberg_marquardt = defaults.levenberg_marquardt if defaults else 0.0
         self.levenberg_marquardt = check_levenberg_marquardt(levenberg_marquardt)
         self.warm_start_duals = None if warm_start_duals is None else bool(warm_start_duals)
+        if learned_dynamics is None:
+            learned_dynamics = default_learned_dynamics(scheme, defaults)
         if isinstance(learned_dynamics, str):
             if learned_dynamics not in LEARNED_TERMS:
                 raise ValueError(f"learned_dynamics must be one of {list(LEARNED_TERMS)} or a "

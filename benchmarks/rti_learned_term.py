@@ -1,0 +1,144 @@
+"""Which learned term the SSGP real-time iteration should use, per system (the
+``rti_learned_dynamics`` of each system's :class:`gp_envs.systems.PlanningDefaults`).
+
+The split RTI (``scheme="rti-split"``) of the nominal MPC and of the SSGP-MPC with the GP
+linearized per node (``learned_dynamics="linearized"``: its full Jacobian in the QP) and with
+the GP linearized on the nominal model's Jacobian pattern only (``"linearized-pattern"``: the
+nominal QP's sparsity, the dropped derivatives adjoint-corrected), the three agents in lockstep
+on envs reset with the same seed (so a change of the machine's load slows them alike), on
+tuning seeds (default 100-109, the Dubins vehicle 100-115; disjoint from every preset's
+evaluation seeds). Per system and scenario: episodes at the goal, the mean closed-loop cost,
+and the latency (``act`` time minus the preparation done after the action, over the
+replanning steps after the first) as its median per episode divided by the nominal split
+RTI's in the same episode: the median of these per-seed ratios and their range. Outcomes do
+not depend on the machine's load; the ratios do, a little. Run (one core)::
+
+    OMP_NUM_THREADS=1 python -m benchmarks.rti_learned_term [--systems quadrotor] \\
+        [--seeds 100-109] [--dubins-seeds 100-115] [--out FILE.md]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+from collections.abc import Iterable, Sequence
+from pathlib import Path
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import numpy as np
+from tqdm import tqdm
+
+from benchmarks.cli import parse_seeds, print_report
+from benchmarks.controllers import build_controller, make_env
+from gp_agents.agent import rollout_lockstep
+
+__all__ = ["CASES", "RECIPES", "episode_latency", "run", "table"]
+
+RECIPES = ("nominal-mpc-rti-split", "ssgp-mpc-rti-linearized-split",
+           "ssgp-mpc-rti-pattern-split")
+"""The reference (first) and the two linearized learned terms, all split RTIs."""
+CASES = {"cartpole": ("online",), "quadrotor": ("gp", "online"), "dubins": ("paper",)}
+"""Scenarios per system: those of the ``rti`` preset."""
+TUNING_SEEDS = tuple(range(100, 110))
+DUBINS_TUNING_SEEDS = tuple(range(100, 116))
+
+
+def episode_latency(diagnostics: dict[str, np.ndarray]) -> float:
+    """Median latency (s) of one split-RTI episode: ``act_time - preparation_time`` over the
+    replanning steps after the first (which builds the NLP and solves to convergence).
+
+    Raises:
+        ValueError: the diagnostics have no preparation times (not a split RTI) or no
+            replanning step after the first.
+    """
+    if "preparation_time" not in diagnostics:
+        raise ValueError("the diagnostics have no preparation_time: not a split RTI")
+    replanned = diagnostics["replanned"].astype(bool).copy()
+    first = np.flatnonzero(replanned)
+    if first.size < 2:
+        raise ValueError("an episode with fewer than two replanning steps has no latency")
+    replanned[first[0]] = False
+    latency = (diagnostics["act_time"] - diagnostics["preparation_time"])[replanned]
+    return float(np.median(latency))
+
+
+def run(system: str, scenario: str, seeds: Iterable[int], recipes: Sequence[str] = RECIPES,
+        progress: bool = True) -> list[dict[str, object]]:
+    """One lockstep episode of every recipe per seed; one row per (recipe, seed) with
+    ``success``, ``cost`` and ``latency`` (s; :func:`episode_latency`)."""
+    rows: list[dict[str, object]] = []
+    for seed in tqdm(list(seeds), disable=not progress, desc=f"{system} {scenario}"):
+        pairs = []
+        for recipe in recipes:
+            env = make_env(system, scenario)
+            pairs.append((env, build_controller(recipe, env, system, seed).agent))
+        for recipe, (env, agent), ep in zip(recipes, pairs, rollout_lockstep(pairs, seed),
+                                            strict=True):
+            rows.append(dict(system=system, scenario=scenario, recipe=recipe, seed=seed,
+                             success=bool(ep.infos[-1]["success"]), cost=float(ep.cost),
+                             latency=episode_latency(agent.diagnostics_arrays())))
+            env.close()
+    return rows
+
+
+def table(rows: list[dict[str, object]], reference: str = RECIPES[0]) -> str:
+    """Markdown: one row per (system, scenario, recipe); latency ratios against
+    ``reference``'s episode of the same seed."""
+    lines = ["| system | scenario | recipe | at the goal | mean cost | median latency (ms) | "
+             "latency / nominal split RTI's, median over seeds [min, max] |",
+             "|---|---|---|---:|---:|---:|---|"]
+    ref = {(r["system"], r["scenario"], r["seed"]): float(r["latency"])
+           for r in rows if r["recipe"] == reference}
+    for key in dict.fromkeys((r["system"], r["scenario"], r["recipe"]) for r in rows):
+        group = [r for r in rows if (r["system"], r["scenario"], r["recipe"]) == key]
+        latency = np.array([float(r["latency"]) for r in group])
+        ratios = np.array([float(r["latency"]) / ref[(r["system"], r["scenario"], r["seed"])]
+                           for r in group if (r["system"], r["scenario"], r["seed"]) in ref])
+        ratio = ("-" if key[2] == reference or not ratios.size else
+                 f"{np.median(ratios):.2f}x [{ratios.min():.2f}, {ratios.max():.2f}]")
+        lines.append(f"| {key[0]} | `{key[1]}` | {key[2]} | "
+                     f"{sum(bool(r['success']) for r in group)}/{len(group)} | "
+                     f"{np.mean([float(r['cost']) for r in group]):.2f} | "
+                     f"{1e3 * np.median(latency):.2f} | {ratio} |")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Print (and with ``--out`` write) the Markdown table."""
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--systems", default=",".join(CASES),
+                        help=f"comma-separated systems (default: {','.join(CASES)})")
+    parser.add_argument("--seeds", type=parse_seeds,
+                        default=f"{TUNING_SEEDS[0]}-{TUNING_SEEDS[-1]}",
+                        help="env seeds of the cart pole and quadrotor, 'lo-hi' or "
+                             "comma-separated (default: tuning seeds 100-109)")
+    parser.add_argument("--dubins-seeds", type=parse_seeds,
+                        default=f"{DUBINS_TUNING_SEEDS[0]}-{DUBINS_TUNING_SEEDS[-1]}",
+                        help="env seeds of the Dubins vehicle (default: 100-115)")
+    parser.add_argument("--out", type=Path, help="also write the table (Markdown) here")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    args = parser.parse_args(argv)
+    systems = [s for s in args.systems.split(",") if s]
+    unknown = sorted(set(systems) - set(CASES))
+    if unknown or not systems:
+        parser.error(f"unknown or no system(s) {unknown}; choose from {list(CASES)}")
+    rows: list[dict[str, object]] = []
+    for system in systems:
+        seeds = args.dubins_seeds if system == "dubins" else args.seeds
+        for scenario in CASES[system]:
+            rows += run(system, scenario, seeds, progress=not args.no_progress)
+    command = (f"python -m benchmarks.rti_learned_term --systems {','.join(systems)} --seeds "
+               f"{','.join(map(str, args.seeds))} --dubins-seeds "
+               f"{','.join(map(str, args.dubins_seeds))}")
+    text = (f"# The SSGP RTI's learned term: full linearization vs the nominal Jacobian "
+            f"pattern\n\n`OMP_NUM_THREADS=1 {command}` (tuning seeds; one lockstep episode of "
+            f"each recipe per seed, system defaults otherwise). Latency: `act` time minus the "
+            f"preparation after the action, median over an episode's replanning steps after "
+            f"the first; the ratio is per seed against the nominal split RTI's episode run in "
+            f"lockstep with it.\n\n{table(rows)}\n")
+    print_report(text, args.out)
+
+
+if __name__ == "__main__":
+    main()
