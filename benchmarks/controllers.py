@@ -39,7 +39,7 @@ registered learned term, ``PlanningDefaults.rti_learned_dynamics``),
 ``ssgp-mpc-rti-linearized`` (the GP linearized per node on every system),
 ``ssgp-mpc-rti-zero-order`` (the GP's value frozen per node, adjoint-corrected),
 ``ssgp-mpc-rti-pattern`` (the GP linearized on the nominal Jacobian pattern, the rest
-adjoint-corrected), and each of the five with ``-split`` (``scheme="rti-split"``:
+adjoint-corrected), and each of the six with ``-split`` (``scheme="rti-split"``:
 preparation after the action, feedback on the measurement);
 and their converged references warm-started with the previous multipliers
 (:data:`WARM_DUAL_VARIANTS`): ``nominal-mpc-warm-duals``, ``oracle-mpc-warm-duals``.
@@ -266,7 +266,7 @@ RTI_VARIANTS["ssgp-mpc-rti-pattern"] = ControllerRecipe(
     "gains, the dropped derivatives corrected with the previous multipliers)",
     learner="ssgp", learn_online=True,
     settings=(("scheme", "rti"), ("learned_dynamics", "linearized-pattern")))
-for _name in ("nominal-mpc-rti", "ssgp-mpc-rti", "ssgp-mpc-rti-linearized",
+for _name in ("nominal-mpc-rti", "oracle-mpc-rti", "ssgp-mpc-rti", "ssgp-mpc-rti-linearized",
               "ssgp-mpc-rti-zero-order", "ssgp-mpc-rti-pattern"):
     _base = RTI_VARIANTS[_name]
     RTI_VARIANTS[f"{_name}-split"] = dataclasses.replace(

@@ -295,7 +295,8 @@ def rti(seeds: Sequence[int] = tuple(range(10)),
         act_samples: Sequence[int] = (200, 5000)) -> Experiment:
     """The MPC acceptance runs with the real-time iteration next to the converged MPC."""
     specs = episodes((*rti_controllers("cartpole"), "oracle-mpc", "oracle-mpc-warm-duals",
-                      "oracle-mpc-rti"), [("cartpole", "online")], seeds, interleave=True)
+                      "oracle-mpc-rti", "oracle-mpc-rti-split"), [("cartpole", "online")],
+                     seeds, interleave=True)
     specs += episodes(rti_controllers("quadrotor"), [("quadrotor", "gp"), ("quadrotor", "online")],
                       seeds, interleave=True)
     specs += episodes(rti_controllers("dubins"), [("dubins", "paper")], dubins_seeds,

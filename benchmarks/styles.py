@@ -89,6 +89,7 @@ STYLES: dict[str, Style] = {
     "oracle-mpc": Style(_ORACLE, RECEDING, "x", linewidth=1.0, zorder=5.0),
     "oracle-episodic": Style(_ORACLE, EPISODIC, "+", linewidth=1.0, zorder=5.0),
     "oracle-mpc-rti": Style(_ORACLE, RTI, "1", linewidth=1.0, zorder=5.0),
+    "oracle-mpc-rti-split": Style(_ORACLE, RTI, "$O$", linewidth=1.0, zorder=5.0),
     "oracle-mpc-warm-duals": Style(_ORACLE, WARM_DUALS, "3", linewidth=1.0, zorder=5.0),
     "gp-mpc": Style(_GP, RECEDING, "D"),
     "gp-episodic": Style(_GP, EPISODIC, "d"),
