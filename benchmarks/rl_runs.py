@@ -130,6 +130,15 @@ PLANS: dict[str, Plan] = {
         root=PILOTS / "tqc", seed_dirs=False,
         description="sweep: TQC (sb3-contrib) with the zoo's swing-up TQC settings, bounded "
                     "shift + time feature"),
+    # the Dubins sweep's variant: the algorithm that won the cart-pole sweep (TQC, the same
+    # settings as cartpole_online_tqc) on the Dubins vehicle at dubins_paper_sac's budget;
+    # algorithm seed 102 (disjoint from the plan's seeds 0-2), learning-curve seeds only
+    "sweep_dubins_tqc": Plan(
+        env="dubins", scenario="paper", algo="tqc", hyperparams="tqc-swingup",
+        steps=300_000, seeds=(102,), reward="bounded-shift", time_feature=True,
+        root=PILOTS / "dubins_tqc", seed_dirs=False,
+        description="sweep: TQC (sb3-contrib) with the swing-up TQC settings on the Dubins "
+                    "vehicle, bounded shift + time feature"),
     # the cart-pole SAC baseline: rl-zoo3's InvertedPendulumSwingupBulletEnv-v0 SAC settings
     # and step budget (3e5), 5 seeds; bounded shift + time feature (the pilot showed no harm
     # at 5e4 steps; the shift ranks policies exactly as the task's reward does, and the zoo's
