@@ -13,9 +13,11 @@ interquartile range and a percentile-bootstrap 95% CI of the median (10000 resam
 seeds, NumPy generator seed 0).
 
 Run: ``python -m benchmarks.rl_summary [--plan NAME ...]``. Writes
-``benchmarks/results/rl/summary.md``, ``<plan>_curves.png`` and ``<plan>_final_eval.csv`` (one
-row per episode). ``--pilot`` instead writes ``benchmarks/results/rl/pilot/pilot.md`` and
-``pilot.png`` from the pilot plans' learning curves alone (training-evaluation seeds only).
+``benchmarks/results/rl/summary.md``, ``<plan>_curves.png``, ``<plan>_final_eval.csv`` (one
+row per episode) and, per env, ``<env>_<scenario>_sample_efficiency.png`` (every plan's median
+and interquartile band over seeds against the MPC references' data use, one log axis).
+``--pilot`` instead writes ``benchmarks/results/rl/pilot/pilot.md`` and ``pilot.png`` from the
+pilot plans' learning curves alone (training-evaluation seeds only).
 """
 
 from __future__ import annotations
@@ -227,15 +229,69 @@ def _steps_fmt(v: float, _pos: Any = None) -> str:
     return f"{v / 1000:g}k"
 
 
-def median_curve(runs: list[SeedRun], key: str, min_seeds: int = 2
-                 ) -> tuple[np.ndarray, np.ndarray]:
-    """Median over seeds of ``key`` at each evaluation step reached by >= ``min_seeds`` seeds."""
+def curve_percentiles(runs: list[SeedRun], key: str, q: tuple[float, ...] = (25, 50, 75),
+                      min_seeds: int = 2) -> tuple[np.ndarray, np.ndarray]:
+    """Percentiles ``q`` over seeds of ``key`` at each evaluation step reached by at least
+    ``min_seeds`` seeds: the steps (S,) and the percentiles (len(q), S)."""
     by_step: dict[int, list[float]] = {}
     for r in runs:
         for row in r.curve:
             by_step.setdefault(int(row["timesteps"]), []).append(row[key])
     steps = sorted(s for s, v in by_step.items() if len(v) >= min_seeds)
-    return np.array(steps), np.array([np.median(by_step[s]) for s in steps])
+    values = np.array([np.percentile(by_step[s], q) for s in steps]).reshape(len(steps), len(q))
+    return np.array(steps), values.T
+
+
+def median_curve(runs: list[SeedRun], key: str, min_seeds: int = 2
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """Median over seeds of ``key`` at each evaluation step reached by >= ``min_seeds`` seeds."""
+    steps, values = curve_percentiles(runs, key, (50,), min_seeds)
+    return steps, values[0]
+
+
+def plot_sample_efficiency(title: str, plans: list[tuple[str, Plan, list[SeedRun]]],
+                           refs: dict[str, dict[str, float]], path: Path) -> None:
+    """One env's sample efficiency on one log axis of env steps: per RL plan the median over
+    its seeds' training evaluations with the interquartile band (steps that at least two seeds
+    reached), and the MPC references (:func:`mpc_references`) as points at the env steps of data
+    they used; the bars of the two criteria (success 0.8, cost 1.1x the oracle MPC's) dashed.
+    Left: success rate; right: mean cost (log)."""
+    from benchmarks.styles import style
+
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.4))
+    for i, (name, plan, runs) in enumerate(plans):
+        for ax, key in zip(axes, ("success_rate", "mean_cost"), strict=True):
+            steps, (lo, med, hi) = curve_percentiles(runs, key)
+            keep = steps > 0  # log axis
+            if not keep.any():
+                continue
+            ax.fill_between(steps[keep], lo[keep], hi[keep], color=f"C{i}", alpha=0.25, lw=0)
+            ax.plot(steps[keep], med[keep], "-", color=f"C{i}", lw=2,
+                    label=f"{plan.algo.upper()}, {name}: median of {len(runs)} seeds, IQR band")
+    for controller, ref in refs.items():
+        point = style(controller).point()
+        label = f"{controller} ({ref['episodes']} episodes, data used)"
+        axes[0].plot([ref["data_steps"]], [ref["success_rate"]], label=label, **point)
+        axes[1].plot([ref["data_steps"]], [ref["mean_cost"]], label=label, **point)
+    axes[0].axhline(SUCCESS_BAR, color="0.4", ls="--", lw=1,
+                    label=f"success {SUCCESS_BAR:g} (criterion i)")
+    if "oracle-mpc" in refs:
+        axes[1].axhline(COST_MARGIN * refs["oracle-mpc"]["mean_cost"], color="0.4", ls="--",
+                        lw=1, label=f"{COST_MARGIN:g}x the oracle MPC's cost (criterion ii)")
+    for ax, label in zip(axes, ("success rate", "mean cost (log)"), strict=True):
+        ax.set_xscale("log")
+        ax.set_xlabel("env steps of data (RL: training steps; MPC: initial data + episode)")
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3, which="both")
+    axes[0].set_ylim(-0.03, 1.03)
+    _log_axis(axes[1])
+    axes[0].legend(fontsize=7, loc="center left")
+    axes[1].legend(fontsize=7, loc="upper right")
+    fig.suptitle(f"{title}: sample efficiency on the training-evaluation reset seeds "
+                 f"{TRAINING_EVAL_SEEDS.start}..{TRAINING_EVAL_SEEDS.stop - 1}", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
 
 
 def plot_plan(name: str, plan: Plan, runs: list[SeedRun], path: Path) -> None:
@@ -373,6 +429,8 @@ def write_summary(names: list[str], out: Path = OUT) -> Path:
              "step. No checkpoint selection: each seed's policy at the plan's final step is "
              "evaluated; the learning curves (reset seeds 1000..1019, disjoint from the final "
              "evaluation's 0..19) are shown in full.", ""]
+    references: dict[tuple[str, str], dict[str, dict[str, float]]] = {}
+    by_env: dict[tuple[str, str], list[tuple[str, Plan, list[SeedRun]]]] = {}
     for name in names:
         plan = PLANS[name]
         runs = load_runs(name, plan)
@@ -389,13 +447,27 @@ def write_summary(names: list[str], out: Path = OUT) -> Path:
         png = f"{name}_curves.png"
         if runs:
             plot_plan(name, plan, runs, out / png)
-        refs = mpc_references(plan.env, plan.scenario) if runs else None
+        refs = None
+        if runs:
+            if (plan.env, plan.scenario) not in references:
+                references[plan.env, plan.scenario] = mpc_references(plan.env, plan.scenario)
+            refs = references[plan.env, plan.scenario]
+            by_env.setdefault((plan.env, plan.scenario), []).append((name, plan, runs))
         lines += plan_section(name, plan, runs, png, refs)
         for r in runs:
             if r.episodes:
                 m = policy_metrics(r.episodes)
                 print(f"{name} seed {r.seed}: success {m['success_rate']:.2f} cost "
                       f"{m['mean_cost']:.2f} distance {m['mean_final_distance']:.3f}")
+    for (env, scenario), plans in by_env.items():
+        png = f"{env}_{scenario}_sample_efficiency.png"
+        title = f"{ENV_SHORT_NAMES.get(env, env)} ({scenario})"
+        plot_sample_efficiency(title, plans, references[env, scenario], out / png)
+        lines += [f"## Sample efficiency: {title}", "",
+                  "Every RL plan above on this env against the MPC references on one axis of env "
+                  "steps: the median over seeds of the training evaluations with the "
+                  "interquartile band, the MPCs at the data they used.", "",
+                  f"![{env} sample efficiency]({png})", ""]
     path = out / "summary.md"
     path.write_text("\n".join(lines) + "\n")
     print(f"wrote {_rel(path)}")

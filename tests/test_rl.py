@@ -498,6 +498,28 @@ def test_summary_from_tiny_runs(sac_runs: dict, tmp_path: Path,
     # the two copies are the same policy: the same episodes
     assert [r["cost"] for r in rows[:20]] == [r["cost"] for r in rows[20:]]
     assert (tmp_path / "out" / "tiny_curves.png").stat().st_size > 10_000
+    assert "## Sample efficiency: gp_envs/CartPoleSwingUp-v0 (online)" in text
+    assert (tmp_path / "out" / "cartpole_online_sample_efficiency.png").stat().st_size > 10_000
+
+
+def test_curve_percentiles_are_over_the_seeds_at_each_step() -> None:
+    """Percentiles at a step are NumPy's over the seeds evaluated there; a step fewer than
+    ``min_seeds`` seeds reached is left out; the median curve is the 50th percentile."""
+    from benchmarks.rl_summary import SeedRun, curve_percentiles, median_curve
+
+    runs = [SeedRun(k, Path("."), [{"timesteps": float(t), "mean_cost": c}
+                                   for t, c in zip(steps, costs, strict=True)], None)
+            for k, (steps, costs) in enumerate((([0, 10, 20], [9, 5, 1]),
+                                                ([0, 10, 20], [8, 6, 2]),
+                                                ([0, 10], [7, 1])))]
+    steps, (lo, med, hi) = curve_percentiles(runs, "mean_cost")
+    assert steps.tolist() == [0, 10, 20]
+    np.testing.assert_allclose(med, [8, 5, 1.5])
+    np.testing.assert_allclose(lo, [7.5, 3.0, 1.25])  # linear interpolation between ranks
+    np.testing.assert_allclose(hi, [8.5, 5.5, 1.75])
+    steps3, _ = curve_percentiles(runs, "mean_cost", min_seeds=3)
+    assert steps3.tolist() == [0, 10]
+    np.testing.assert_array_equal(median_curve(runs, "mean_cost")[1], med)
 
 
 def test_ship_copies_the_seed_with_the_lowest_last_training_cost(tmp_path: Path) -> None:
