@@ -153,8 +153,9 @@ def sample_efficiency(seeds: Sequence[int] = (0, 1, 2, 3, 4)) -> Experiment:
 
 STEP_SCALING_CONTROLLERS = ("nominal-mpc", "nominal-mpc-rti", "ssgp-mpc-linearized",
                             "ssgp-mpc-rti")
-"""The converged and RTI recipes (nominal and SSGP with the GP linearized per node) of the
-compute preset's scaling table."""
+"""The converged and RTI recipes of the compute preset's scaling table: nominal, and SSGP with
+the GP linearized per node (converged) or its system's registered RTI learned term (the
+quadrotor's: the nominal-pattern linearization)."""
 STEP_SCALING_GRID: dict[str, tuple[int, ...]] = {
     "step-vs-nodes": (6, 10, 16, 24),
     "step-vs-horizon": (1000, 1500, 2000, 3000),
