@@ -366,6 +366,13 @@ def test_the_learned_term_comparison_measures_split_latency_against_the_nominal(
                                                 ("x", 0, 1.5), ("x", 1, 2.0))]
     text = lt.table(rows, reference="ref")
     assert "| s | `c` | x | 2/2 | 1.00 | 1750.00 | 1.25x [1.00, 1.50] |" in text
+    assert lt.recipes("cartpole")[0] == "oracle-mpc-rti-split"  # its nominal RTI never steps
+    assert lt.recipes("dubins") == lt.RECIPES
+    per_system = [{**r, "system": "cartpole",
+                   "recipe": "oracle-mpc-rti-split" if r["recipe"] == "ref" else r["recipe"]}
+                  for r in rows]
+    assert "| cartpole | `c` | x | 2/2 | 1.00 | 1750.00 | 1.25x [1.00, 1.50] |" in lt.table(
+        per_system)
     rows = lt.run("pendulum", "damped", [0], recipes=lt.RECIPES[:2], progress=False)
     assert [r["recipe"] for r in rows] == list(lt.RECIPES[:2])
     assert all(r["latency"] > 0 and np.isfinite(r["cost"]) for r in rows)
