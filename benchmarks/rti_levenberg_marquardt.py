@@ -6,7 +6,12 @@ The RTI recipes (nominal and SSGP, one call and split into preparation and feedb
 from every preset's evaluation seeds): episodes at the goal, the RTI steps the safety net
 rejected (each costs a converged solve, and they dominate the median step where they are
 frequent) and the closed-loop cost. Outcomes only: the machine's load changes no number here.
-Run (one core)::
+
+The rule that sets a system's ``levenberg_marquardt``: of the ``mu`` whose SSGP RTIs (one call
+and split) each reach the goal on at least as many tuning seeds as at ``mu = 0`` with a mean
+cost within 2% of theirs at ``mu = 0``, and whose reference RTI (nominal; the cart pole's
+oracle) loses no seed either, the one with the fewest rejected SSGP RTI steps; ties: the
+smaller ``mu``. Run (one core)::
 
     OMP_NUM_THREADS=1 python -m benchmarks.rti_levenberg_marquardt [--system dubins] \\
         [--mu 0,0.003,0.01,0.03] [--seeds 100-115] [--out FILE.md]
@@ -25,7 +30,7 @@ from tqdm import tqdm
 
 import gp_envs
 from benchmarks.cli import parse_seeds, print_report
-from benchmarks.controllers import RTI_VARIANTS, build_controller, make_env
+from benchmarks.controllers import RTI_VARIANTS, build_controller, check_env_scenario, make_env
 from benchmarks.rti_qp_solvers import SCENARIOS
 from gp_agents.agent import rollout
 
@@ -36,20 +41,24 @@ TUNING_SEEDS = tuple(range(100, 116))
 
 
 def run(system: str, mus: list[float], seeds: list[int], recipes: list[str],
-        progress: bool = True) -> list[dict[str, object]]:
-    """One episode per (recipe, mu, seed); returns one row per episode."""
+        progress: bool = True, scenario: str | None = None) -> list[dict[str, object]]:
+    """One episode per (recipe, mu, seed) on ``scenario`` (default: the system's
+    :data:`~benchmarks.rti_qp_solvers.SCENARIOS` entry); returns one row per episode."""
     jobs = [(r, mu, s) for r in recipes for mu in mus for s in seeds]
-    return [dict(mu=mu, **rti_episode(system, recipe, seed, {"levenberg_marquardt": mu}))
+    return [dict(mu=mu, **rti_episode(system, recipe, seed, {"levenberg_marquardt": mu},
+                                      scenario))
             for recipe, mu, seed in tqdm(jobs, disable=not progress, desc=f"{system} RTI mu")]
 
 
 def rti_episode(system: str, recipe: str, seed: int,
-                settings: dict[str, object] | None = None) -> dict[str, object]:
-    """One episode of RTI recipe ``recipe`` on ``system``'s RTI scenario with env seed ``seed``
+                settings: dict[str, object] | None = None,
+                scenario: str | None = None) -> dict[str, object]:
+    """One episode of RTI recipe ``recipe`` on ``system``'s ``scenario`` (default its RTI
+    scenario, :data:`~benchmarks.rti_qp_solvers.SCENARIOS`) with env seed ``seed``
     (``settings``: extra :class:`gp_agents.PseudospectralMPC` settings): ``recipe``, ``seed``,
     ``success``, ``cost``, the RTI steps the safety net ``rejected`` of ``rti_steps``, and the
     steps with a constraint violation (``contacts``)."""
-    env = make_env(system, SCENARIOS[system])
+    env = make_env(system, scenario or SCENARIOS[system])
     built = build_controller(recipe, env, system, seed, settings=settings)
     episode = rollout(env, built.agent, seed)
     planner = built.agent.planner
@@ -82,6 +91,8 @@ def main(argv: list[str] | None = None) -> None:
     """Print (and with ``--out`` write) the Markdown table."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--system", default="dubins", help="a registered system name")
+    parser.add_argument("--scenario", help="the env scenario (default: the system's RTI "
+                        "scenario, benchmarks.rti_qp_solvers.SCENARIOS)")
     parser.add_argument("--mu", default=",".join(f"{m:g}" for m in MUS),
                         help="comma-separated Levenberg-Marquardt terms, each >= 0")
     parser.add_argument("--seeds", type=parse_seeds,
@@ -106,11 +117,18 @@ def main(argv: list[str] | None = None) -> None:
     if unknown or not recipes or not seeds:
         parser.error(f"unknown or no recipe(s) {unknown} or no seeds; RTI recipes: "
                      f"{sorted(RTI_VARIANTS)}")
-    rows = run(args.system, mus, seeds, recipes, progress=not args.no_progress)
-    text = (f"# RTI Levenberg-Marquardt term, {args.system}\n\n"
+    scenario = args.scenario or SCENARIOS[args.system]
+    try:
+        check_env_scenario(args.system, scenario)
+    except ValueError as err:
+        parser.error(str(err))
+    rows = run(args.system, mus, seeds, recipes, progress=not args.no_progress,
+               scenario=scenario)
+    text = (f"# RTI Levenberg-Marquardt term, {args.system} `{scenario}`\n\n"
             f"`python -m benchmarks.rti_levenberg_marquardt --system {args.system} "
-            f"--mu {args.mu} --seeds {','.join(map(str, seeds))}` (tuning seeds; one "
-            f"episode per recipe, mu and seed)\n\n{table(rows)}\n")
+            f"--scenario {scenario} --mu {args.mu} --seeds {','.join(map(str, seeds))} "
+            f"--recipes {','.join(recipes)}` (tuning seeds; one episode per recipe, mu and "
+            f"seed)\n\n{table(rows)}\n")
     print_report(text, args.out)
 
 

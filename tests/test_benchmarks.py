@@ -320,7 +320,8 @@ def test_the_levenberg_marquardt_sweep_counts_what_its_episodes_did() -> None:
     assert all(0 <= r["rejected"] <= r["rti_steps"] and r["rti_steps"] > 100 for r in rows)
     text = lm.table(rows)
     assert "| nominal-mpc-rti | 0 |" in text and "| nominal-mpc-rti | 0.01 |" in text
-    for argv in (["--mu", "-0.1"], ["--mu", "x"], ["--recipes", "nominal-mpc"]):
+    for argv in (["--mu", "-0.1"], ["--mu", "x"], ["--recipes", "nominal-mpc"],
+                 ["--scenario", "online"]):
         with pytest.raises(SystemExit):
             lm.main(argv)
 
