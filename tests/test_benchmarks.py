@@ -364,15 +364,17 @@ def test_the_learned_term_comparison_measures_split_latency_against_the_nominal(
         lt.episode_latency({**diag, "replanned": np.array([1, 0, 0, 0, 0])})
     rows = [dict(system="s", scenario="c", recipe=r, seed=k, success=True, cost=1.0,
                  latency=lat) for r, k, lat in (("ref", 0, 1.0), ("ref", 1, 2.0),
-                                                ("x", 0, 1.5), ("x", 1, 2.0))]
+                                                ("x", 0, 1.5), ("x", 1, 2.0),
+                                                (lt.RECIPES[1], 0, 1.5), (lt.RECIPES[1], 1, 2.2))]
     text = lt.table(rows, reference="ref")
-    assert "| s | `c` | x | 2/2 | 1.00 | 1750.00 | 1.25x [1.00, 1.50] |" in text
+    assert "| s | `c` | x | 2/2 | 1.00 | 1750.00 | 1.25x [1.00, 1.50] | 1/2 |" in text
+    assert f"| {lt.RECIPES[1]} | 2/2 | 1.00 | 1850.00 | 1.30x [1.10, 1.50] | - |" in text
     assert lt.recipes("cartpole")[0] == "oracle-mpc-rti-split"  # its nominal RTI never steps
     assert lt.recipes("dubins") == lt.RECIPES
     per_system = [{**r, "system": "cartpole",
                    "recipe": "oracle-mpc-rti-split" if r["recipe"] == "ref" else r["recipe"]}
                   for r in rows]
-    assert "| cartpole | `c` | x | 2/2 | 1.00 | 1750.00 | 1.25x [1.00, 1.50] |" in lt.table(
+    assert "| cartpole | `c` | x | 2/2 | 1.00 | 1750.00 | 1.25x [1.00, 1.50] | 1/2 |" in lt.table(
         per_system)
     rows = lt.run("pendulum", "damped", [0], recipes=lt.RECIPES[:2], progress=False)
     assert [r["recipe"] for r in rows] == list(lt.RECIPES[:2])
