@@ -115,7 +115,7 @@ class ControllerRecipe:
         oracle: plan with the true model (upper bound); MPC only.
         mode: ``"receding"`` or ``"episodic"``; MPC only.
         learn_online: feed closed-loop transitions to the learner; MPC only.
-        algo: ``"sac"`` or ``"ppo"``; RL only.
+        algo: ``"sac"``, ``"ppo"`` or ``"tqc"``; RL only.
         settings: extra keyword settings of :class:`gp_agents.PseudospectralMPC` as
             ``(name, value)`` pairs (the speed variants of the SSGP-MPC); MPC only.
     """
@@ -313,8 +313,12 @@ CONTROLLERS: dict[str, ControllerRecipe] = {
                             algo="sac"),
     "ppo": ControllerRecipe("ppo", "PPO", "rl", "shipped stable-baselines3 PPO policy",
                             algo="ppo"),
+    "tqc": ControllerRecipe("tqc", "TQC", "rl", "shipped sb3-contrib TQC policy", algo="tqc"),
 }
 """The controller registry: every recipe by name."""
+RL_ALGORITHMS = tuple(name for name, r in CONTROLLERS.items() if r.family == "rl")
+"""The RL recipes (``"sac"``, ``"ppo"``, ``"tqc"``): each loads its shipped policy where one
+exists for the env."""
 
 
 class UnknownNameError(ValueError):

@@ -15,6 +15,7 @@ from benchmarks.controllers import (
     CONTROLLERS,
     ENVS,
     N_INITIAL_POINTS,
+    RL_ALGORITHMS,
     check_env_scenario,
     check_name,
     learned_term,
@@ -147,7 +148,7 @@ def sample_efficiency(seeds: Sequence[int] = (0, 1, 2, 3, 4)) -> Experiment:
         "episode's steps for nominal/oracle), SAC/PPO are their training-time learning curves "
         "(`learning_curve.csv` shipped with each model: deterministic evaluations on reset "
         "seeds 1000..1009) and the final policies evaluated here on the same seeds as the MPCs.",
-        episodes((*MPC_RECEDING, "sac", "ppo"), SAMPLE_EFFICIENCY_ENVS, seeds),
+        episodes((*MPC_RECEDING, *RL_ALGORITHMS), SAMPLE_EFFICIENCY_ENVS, seeds),
         ("sample_efficiency", "summary"))
 
 
@@ -171,7 +172,7 @@ def compute(act_samples: Sequence[int] = (200, 1000, 5000),
     """Per-step compute of every controller; SSGP-MPC scaling with samples and rank; the
     converged and RTI step time against LG nodes, horizon, rank r and samples learned."""
     pairs = [(e, ENVS[e].default_scenario) for e in ENVS]
-    specs = episodes((*MPC_RECEDING, *MPC_EPISODIC, "sac", "ppo"), pairs, (0,))
+    specs = episodes((*MPC_RECEDING, *MPC_EPISODIC, *RL_ALGORITHMS), pairs, (0,))
     specs += tuple(TrialSpec("ssgp-act-scaling", "cartpole", "online", "ssgp-mpc", 0, param=n)
                    for n in act_samples)
     specs += tuple(TrialSpec("ssgp-act-scaling", env, scenario, c, 0, param=n)
@@ -413,7 +414,7 @@ def robustness(seeds: Sequence[int] = ROBUSTNESS_SEEDS,
 def quick() -> Experiment:
     """A couple of minutes: the main controllers on every env, one or two seeds."""
     ssgp = ("ssgp-mpc", "ssgp-mpc-linearized")
-    specs = episodes(("nominal-mpc", "gp-mpc", *ssgp, "oracle-mpc", "sac"),
+    specs = episodes(("nominal-mpc", "gp-mpc", *ssgp, "oracle-mpc", "sac", "tqc"),
                      [("cartpole", "online")], (0, 1))
     specs += episodes(("nominal-mpc", *ssgp, "oracle-mpc", "ppo"), [("quadrotor", "online")],
                       (0,))

@@ -43,7 +43,7 @@ from matplotlib.ticker import (
 )
 
 from benchmarks.compute import STEP_SCALING
-from benchmarks.controllers import CONTROLLERS, ENVS, MODELS_DIR, learned_term
+from benchmarks.controllers import CONTROLLERS, ENVS, MODELS_DIR, RL_ALGORITHMS, learned_term
 from benchmarks.presets import MPC_BASES, Experiment, Preset
 from benchmarks.runner import load_arrays, load_record, trial_path
 from benchmarks.styles import EPISODIC, RTI, WARM_DUALS, Style, axis_label, style
@@ -729,7 +729,7 @@ def section_sample_efficiency(ctx: Context, exp: Experiment) -> list[str]:
     for (env, scenario), rows in by.items():
         fig, (ax_s, ax_r) = plt.subplots(1, 2, figsize=(11, 4))
         table = []
-        for algo in ("sac", "ppo"):
+        for algo in RL_ALGORITHMS:
             curve = [p for p in _learning_curve(env, algo) if p["timesteps"] > 0]  # log axis
             rl_row = next((r for r in rows if r["controller"] == algo), None)
             if curve and rl_row is not None and rl_row["episodes"]:

@@ -79,6 +79,7 @@ _SSGP_LINEARIZED_GUARDED = "#D62728"  # red
 _SSGP_LINEARIZED_SATURATED = "#393B79"  # dark indigo
 _SAC = "#9467BD"  # purple
 _PPO = "#BCBD22"  # olive
+_TQC = "#E377C2"  # pink
 
 STYLES: dict[str, Style] = {
     # nominal: thick and underneath; oracle: thin and on top (the two often coincide)
@@ -120,6 +121,7 @@ STYLES: dict[str, Style] = {
     "ssgp-mpc-rti-linearized-split": Style(_SSGP_LINEARIZED, RTI, "$R$"),
     "sac": Style(_SAC, RECEDING, "*"),
     "ppo": Style(_PPO, RECEDING, "X"),
+    "tqc": Style(_TQC, RECEDING, "$T$"),
 }
 """The style of every controller recipe, by recipe name (see the module docstring)."""
 

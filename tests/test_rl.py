@@ -42,6 +42,7 @@ REPO = Path(__file__).resolve().parents[1]
 MODELS = Path(__file__).resolve().parents[1] / "benchmarks" / "models"
 SHIPPED = {
     "cartpole/sac": ("gp_envs/CartPoleSwingUp-v0", "online"),
+    "cartpole/tqc": ("gp_envs/CartPoleSwingUp-v0", "online"),
     "quadrotor/ppo": ("gp_envs/Quadrotor-v0", "online"),
     "dubins/ppo": ("gp_envs/DubinsObstacle-v0", "paper"),
 }
