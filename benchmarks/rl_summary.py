@@ -340,6 +340,14 @@ def _fmt_stat(st: dict[str, float], fmt: str) -> tuple[str, str]:
     return iqr, ci
 
 
+def table_steps(steps: np.ndarray, every: int = 25_000) -> list[int]:
+    """Indices of the learning-curve rows the summary tabulates: for each multiple of
+    ``every`` up to the last step, the first evaluation at or after it (evaluations need not
+    fall on the multiples: TQC's train in chunks of 64 steps), and the last one."""
+    picked = [int(np.searchsorted(steps, m)) for m in range(0, int(steps[-1]) + 1, every)]
+    return sorted({i for i in picked if i < len(steps)} | {len(steps) - 1})
+
+
 def plan_section(name: str, plan: Plan, runs: list[SeedRun], png: str,
                  refs: dict[str, dict[str, float]] | None = None) -> list[str]:
     """Markdown for one plan (tables, figure)."""
@@ -398,7 +406,7 @@ def plan_section(name: str, plan: Plan, runs: list[SeedRun], png: str,
         _s, dist = median_curve(runs, "mean_final_distance", min_seeds=1)
         n_at = {int(t): sum(any(int(c["timesteps"]) == t for c in r.curve) for r in runs)
                 for t in s}
-        pick = [i for i, t in enumerate(s) if t % 25_000 == 0 or i == len(s) - 1]
+        pick = table_steps(s)
         lines += ["Learning curve, median over the seeds evaluated at that step (training "
                   "evaluation: reset seeds 1000..1019, deterministic):", "",
                   "| env steps | seeds | success rate | mean cost | final distance |",

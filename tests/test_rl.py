@@ -503,6 +503,14 @@ def test_summary_from_tiny_runs(sac_runs: dict, tmp_path: Path,
     assert (tmp_path / "out" / "cartpole_online_sample_efficiency.png").stat().st_size > 10_000
 
 
+def test_the_summary_tabulates_the_first_evaluation_at_each_multiple() -> None:
+    from benchmarks.rl_summary import table_steps
+
+    assert table_steps(np.array([0, 25_000, 50_000, 60_000])) == [0, 1, 2, 3]
+    tqc = np.array([0, 5056, 24_960, 25_024, 49_984, 50_048, 51_000])
+    assert table_steps(tqc) == [0, 3, 5, 6]  # 25_024 and 50_048 stand for 25k and 50k
+
+
 def test_curve_percentiles_are_over_the_seeds_at_each_step() -> None:
     """Percentiles at a step are NumPy's over the seeds evaluated there; a step fewer than
     ``min_seeds`` seeds reached is left out; the median curve is the 50th percentile."""
