@@ -31,7 +31,9 @@ whose learner also restarts when it detects that the system changed
 the residual switched off while it predicts worse than the nominal model
 (:class:`gp_agents.learners.NominalFallback`); ``ssgp-mpc-linearized-saturated``, the guarded
 one whose learner saturates its standardized inputs (``input_saturation``,
-:data:`gp_agents.learners.INPUT_SATURATION` standard deviations).
+:data:`gp_agents.learners.INPUT_SATURATION` standard deviations);
+``ssgp-mpc-linearized-parametric``, the saturated one with linear features on the parameter
+sensitivities only (the residual's parametric part alone).
 
 Real-time-iteration variants (:data:`RTI_VARIANTS`, preset ``rti``): ``nominal-mpc-rti``,
 ``oracle-mpc-rti``, ``ssgp-mpc-rti`` (``scheme="rti"``; the SSGP one with the system's
@@ -224,6 +226,12 @@ SENSITIVITY_VARIANTS: dict[str, ControllerRecipe] = dict([
                   "input_saturation=INPUT_SATURATION)): plans far outside the initial data "
                   "meet a bounded residual, not an extrapolated slope",
                   learner="ssgp-saturated", sensitivities=True, learned_dynamics="linearized"),
+    _ssgp_variant("linearized-parametric", "linearized, parametric",
+                  "ssgp-mpc-linearized-saturated whose linear features are on the parameter "
+                  "sensitivities only (online_ssgp(..., linear_features=<their columns>)): the "
+                  "residual's parametric part dp' S(x, u) without linear terms in the raw "
+                  "states and controls, which extrapolate as a drift the physics lacks",
+                  learner="ssgp-parametric", sensitivities=True, learned_dynamics="linearized"),
 ])
 """Variants of ``ssgp-mpc`` whose residual has an explicit parametric part (issue: online
 learning across the envelope), compared by the ``robustness`` preset."""
@@ -384,12 +392,14 @@ class OracleModel:
         return gp_envs.oracle_model(self.env)
 
 
-def make_learner(kind: str) -> Any:
+def make_learner(kind: str, parametric_columns: tuple[int, ...] = ()) -> Any:
     """A fresh residual learner of the recipe kind ``"exact"``, ``"ssgp"``, ``"ssgp-linear"``
     (:func:`gp_agents.online_ssgp` with linear features), ``"ssgp-adaptive"`` (linear
     features and a :class:`~gp_agents.learners.ChangeDetector`), ``"ssgp-guarded"`` (those
-    and a :class:`~gp_agents.learners.NominalFallback`) or ``"ssgp-saturated"`` (those and
-    the input saturation :data:`~gp_agents.learners.INPUT_SATURATION`)."""
+    and a :class:`~gp_agents.learners.NominalFallback`), ``"ssgp-saturated"`` (those and
+    the input saturation :data:`~gp_agents.learners.INPUT_SATURATION`) or
+    ``"ssgp-parametric"`` (the saturated one with linear features on ``parametric_columns``
+    only, the input's parameter sensitivities)."""
     from gp_agents import online_ssgp
     from gp_agents.learners import INPUT_SATURATION, ChangeDetector, ExactGP, NominalFallback
 
@@ -404,9 +414,14 @@ def make_learner(kind: str) -> Any:
     if kind == "ssgp-guarded":
         return online_ssgp(linear_features=True, change_detector=ChangeDetector(),
                            nominal_fallback=NominalFallback())
-    if kind == "ssgp-saturated":
-        return online_ssgp(linear_features=True, change_detector=ChangeDetector(),
-                           nominal_fallback=NominalFallback(), input_saturation=INPUT_SATURATION)
+    if kind in ("ssgp-saturated", "ssgp-parametric"):
+        if kind == "ssgp-parametric" and not parametric_columns:
+            raise ValueError("learner kind 'ssgp-parametric' needs the input's sensitivity "
+                             "columns (parametric_columns)")
+        return online_ssgp(linear_features=(parametric_columns if kind == "ssgp-parametric"
+                                            else True),
+                           change_detector=ChangeDetector(), nominal_fallback=NominalFallback(),
+                           input_saturation=INPUT_SATURATION)
     raise ValueError(f"unknown learner kind {kind!r}")
 
 
@@ -450,7 +465,7 @@ def build_controller(name: str, env: gym.Env, env_name: str, seed: int,
         data = collect_initial_data(data_env or env, n_init, seed=seed)
     obs, _ = env.reset(seed=seed, options=options)
     if learner is None and recipe.learner is not None:
-        learner = make_learner(recipe.learner)
+        learner = make_learner(recipe.learner, _parametric_columns(recipe, env, settings))
     source = OracleModel(env) if recipe.oracle else None
     agent = PseudospectralMPC.from_env(env, learner, model_source=source, mode=recipe.mode,
                                        learn_online=recipe.learn_online,
@@ -460,6 +475,19 @@ def build_controller(name: str, env: gym.Env, env_name: str, seed: int,
     agent.reset()
     return BuiltController(agent, obs, len(data) if data is not None else 0,
                            {"horizon_s": agent.horizon, "mesh": agent.mesh.describe()})
+
+
+def _parametric_columns(recipe: ControllerRecipe, env: gym.Env,
+                        settings: dict[str, Any] | None) -> tuple[int, ...]:
+    """The learner-input columns of the parameter sensitivities of ``recipe``'s MPC on
+    ``env`` (empty if it has none): the residual its agent will build."""
+    from gp_agents.residual import ResidualModel
+
+    s = {**dict(recipe.settings), **(settings or {})}
+    if not s.get("sensitivities", False):
+        return ()
+    return ResidualModel(env.unwrapped.nominal_model, s.get("uncertain_indices"),
+                         s.get("input_indices"), sensitivities=True).sensitivity_columns
 
 
 def _build_rl(recipe: ControllerRecipe, env: gym.Env, env_name: str, seed: int,

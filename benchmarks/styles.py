@@ -77,6 +77,7 @@ _SSGP_ADAPTIVE = "#2CA02C"  # green
 _SSGP_LINEARIZED_ADAPTIVE = "#7F7F7F"  # grey
 _SSGP_LINEARIZED_GUARDED = "#D62728"  # red
 _SSGP_LINEARIZED_SATURATED = "#393B79"  # dark indigo
+_SSGP_LINEARIZED_PARAMETRIC = "#AEC7E8"  # light blue
 _SAC = "#9467BD"  # purple
 _PPO = "#BCBD22"  # olive
 _TQC = "#E377C2"  # pink
@@ -106,6 +107,7 @@ STYLES: dict[str, Style] = {
     "ssgp-mpc-linearized-adaptive": Style(_SSGP_LINEARIZED_ADAPTIVE, RECEDING, "$l$"),
     "ssgp-mpc-linearized-guarded": Style(_SSGP_LINEARIZED_GUARDED, RECEDING, "$g$"),
     "ssgp-mpc-linearized-saturated": Style(_SSGP_LINEARIZED_SATURATED, RECEDING, "$t$"),
+    "ssgp-mpc-linearized-parametric": Style(_SSGP_LINEARIZED_PARAMETRIC, RECEDING, "$q$"),
     # the SSGP RTI plans with the system's registered learned term (a linearized residual)
     "ssgp-mpc-rti": Style(_SSGP_LINEARIZED, RTI, "8"),
     # the zero-order RTI plans with the residual's value only; "-split": preparation/feedback

@@ -176,6 +176,14 @@ class ResidualModel:
                   for j, k in self._sensitivity_entries]
         return tuple(names)
 
+    @property
+    def sensitivity_columns(self) -> tuple[int, ...]:
+        """Columns of the learner's input holding the parameter sensitivities (the last
+        ones; empty without ``sensitivities``): e.g. a learner's ``linear_features`` for the
+        residual's parametric part alone (:class:`~gp_agents.learners.SSGP`)."""
+        k = len(self._sensitivity_entries)
+        return tuple(range(self.n_inputs - k, self.n_inputs))
+
     def features(self, x: ca.SX | ca.MX, u: ca.SX | ca.MX) -> ca.SX | ca.MX:
         """Learner input ``z = phi(x, u)``: non-angle states, sin/cos of angles, the controls,
         then (with ``sensitivities``) the parameter sensitivities at the nominal values.

@@ -220,6 +220,21 @@ def test_a_nominal_recipe_takes_no_learner() -> None:
         build_controller("nominal-mpc", env, "cartpole", 0, learner=online_ssgp(10))
 
 
+@pytest.mark.parametrize("env_name,scenario", [("dubins", "paper"), ("cartpole", "online")])
+def test_the_parametric_recipe_has_linear_features_on_the_sensitivities_only(
+        env_name: str, scenario: str) -> None:
+    """``ssgp-mpc-linearized-parametric``: the learner's linear features are exactly the
+    residual's parameter-sensitivity inputs (by name), the saturated recipe's on every input."""
+    env = make_env(env_name, scenario)
+    agent = build_controller("ssgp-mpc-linearized-parametric", env, env_name, 0, n_init=60).agent
+    names = np.array(agent.residual.input_names)
+    assert list(names[agent.learner.linear_mask_ == 1.0]) == [
+        n for n in names if n.startswith("d(")]
+    saturated = build_controller("ssgp-mpc-linearized-saturated", env, env_name, 0,
+                                 n_init=60).agent.learner
+    assert np.all(saturated.linear_mask_ == 1.0)
+
+
 def test_no_preset_schedules_the_same_trial_twice() -> None:
     """A trial listed twice would be counted twice in its experiment's summary."""
     for name in PRESETS:

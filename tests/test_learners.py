@@ -562,18 +562,23 @@ def test_ssgp_nlml_linear_gradient_matches_finite_differences(data):
     np.testing.assert_allclose(grad, fd, rtol=1e-5, atol=1e-5)
 
 
-def test_ssgp_linear_features_match_dense_formula(data):
-    """Weight-space SSGP with the features [phi_SE(z); sigma_l z]: dense textbook formula."""
+@pytest.mark.parametrize("columns", [True, (0, 2), (-1,)], ids=["all", "0,2", "-1"])
+def test_ssgp_linear_features_match_dense_formula(data, columns):
+    """Weight-space SSGP with the features [phi_SE(z); sigma_l z] (only the selected columns of
+    z with ``linear_features=<columns>``): dense textbook formula on exactly those features."""
     Z, Y, Zt, _ = data
     hyp = _hyp(3, 2, ell=1.5, sf=0.8, sn=0.1)
-    model = SSGP(10, hyperparameters=hyp, linear_features=True, linear_std=0.7,
+    model = SSGP(10, hyperparameters=hyp, linear_features=columns, linear_std=0.7,
                  random_state=1).fit(Z, Y)
     std = model.standardizer_
     Zs, Ys, Zts = std.transform_inputs(Z), std.transform_outputs(Y), std.transform_inputs(Zt)
+    keep = [0, 1, 2] if columns is True else [c % 3 for c in columns]
+    np.testing.assert_array_equal(np.flatnonzero(model.linear_mask_), keep)
 
     def feats(X, j):
         U = X @ (model.base_frequencies_[j] / hyp.length_scales[j][:, None])
-        return np.hstack([0.8 / np.sqrt(10) * np.cos(U), 0.8 / np.sqrt(10) * np.sin(U), 0.7 * X])
+        return np.hstack([0.8 / np.sqrt(10) * np.cos(U), 0.8 / np.sqrt(10) * np.sin(U),
+                          0.7 * X[:, keep]])
 
     for j in range(2):
         F = feats(Zs, j)
@@ -585,7 +590,37 @@ def test_ssgp_linear_features_match_dense_formula(data):
         m, s = model.predict(Zt, return_std=True)
         np.testing.assert_allclose(m[:, j], mean, rtol=1e-9, atol=1e-9)
         np.testing.assert_allclose(s[:, j] ** 2, var, rtol=1e-8)
+        # the unselected columns' weights are exactly zero, so is their gradient share
+        unselected = [c for c in range(3) if c not in keep]
+        assert np.all(model.weights_[j][20:][unselected] == 0.0)
     assert model.weights_.shape == (2, 23)
+
+
+@pytest.mark.parametrize("columns", [(), (3,), (-4,), (0, 0), (1, -2)], ids=str)
+def test_linear_feature_columns_are_checked(data, columns):
+    Z, Y, _, _ = data
+    with pytest.raises(ValueError, match="linear_features"):
+        SSGP(5, hyperparameters=_hyp(3, 2, ell=1.0, sf=1.0, sn=0.1),
+             linear_features=columns).fit(Z, Y)
+
+
+def test_ssgp_nlml_gradient_with_linear_columns(data):
+    """The marginal likelihood's analytic gradient with a column mask, against central
+    differences; and the mask of every column is the plain linear block."""
+    Z, Y, _, _ = data
+    Zs = (Z - Z.mean(0)) / Z.std(0)
+    y = (Y[:, 0] - Y[:, 0].mean()) / Y[:, 0].std()
+    theta = np.r_[np.log([0.9, 1.1, 1.7]), np.log(0.6), np.log(0.3), np.log(0.8)]
+    base = np.random.default_rng(4).standard_normal((3, 30))
+    mask = np.array([0.0, 1.0, 0.0])
+    fun = lambda t: ssgp_nlml(t, Zs, y, base, linear=mask)  # noqa: E731
+    _, grad = fun(theta)
+    fd = _central_diff(lambda t: fun(t)[0], theta)
+    np.testing.assert_allclose(grad, fd, rtol=1e-5, atol=1e-5)
+    full, plain = ssgp_nlml(theta, Zs, y, base, linear=np.ones(3)), ssgp_nlml(
+        theta, Zs, y, base, linear=True)
+    assert full[0] == plain[0]
+    np.testing.assert_array_equal(full[1], plain[1])
 
 
 def test_linear_features_extrapolate_linear_residual():
@@ -650,10 +685,11 @@ def _check_export(fn: ca.Function, model, Z: np.ndarray) -> None:
         np.testing.assert_allclose(cj, G[n], rtol=1e-8, atol=1e-9)
 
 
+@pytest.mark.parametrize("columns", [True, (1,)], ids=["all", "column 1"])
 @pytest.mark.parametrize("sym", [ca.SX, ca.MX], ids=["SX", "MX"])
-def test_casadi_export_linear_features(sym, data):
+def test_casadi_export_linear_features(sym, columns, data):
     Z, Y, Zt, _ = data
-    model = IncrementalSSGP(12, forgetting_factor=0.98, linear_features=True,
+    model = IncrementalSSGP(12, forgetting_factor=0.98, linear_features=columns,
                             n_restarts=0, random_state=2).fit(Z[:60], Y[:60])
     P = model.casadi_param_size()
     z, theta = sym.sym("z", 3), sym.sym("theta", P)
@@ -677,15 +713,17 @@ def test_casadi_export_linear_features(sym, data):
     np.testing.assert_allclose(model.predict_gradient(z0[None])[0], fd, rtol=1e-5, atol=1e-6)
 
 
-def test_save_load_roundtrip_linear(tmp_path, data):
+@pytest.mark.parametrize("columns", [True, (0, -1)], ids=["all", "0,-1"])
+def test_save_load_roundtrip_linear(tmp_path, data, columns):
     Z, Y, Zt, _ = data
-    model = IncrementalSSGP(12, forgetting_factor=0.98, linear_features=True, n_restarts=0,
+    model = IncrementalSSGP(12, forgetting_factor=0.98, linear_features=columns, n_restarts=0,
                             random_state=5).fit(Z[:50], Y[:50])
     model.update(Z[50:80], Y[50:80])
     path = tmp_path / "ssgp_linear.npz"
     model.save(path)
     loaded = IncrementalSSGP.load(path)
     assert loaded.linear_features
+    np.testing.assert_array_equal(loaded.linear_mask_, model.linear_mask_)
     np.testing.assert_array_equal(loaded.linear_std_, model.linear_std_)
     np.testing.assert_array_equal(loaded.casadi_param_values(), model.casadi_param_values())
     np.testing.assert_array_equal(model.predict(Zt), loaded.predict(Zt))

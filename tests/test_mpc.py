@@ -803,6 +803,8 @@ def test_sensitivity_inputs_explain_a_parameter_error():
     base = ResidualModel(nominal)
     n_sens = res.n_inputs - base.n_inputs
     assert n_sens == len(res.input_names) - len(base.input_names) > 0
+    assert res.sensitivity_columns == tuple(range(base.n_inputs, res.n_inputs))
+    assert base.sensitivity_columns == ()
     rng = np.random.default_rng(0)
     X = np.column_stack([rng.uniform(-1, 1, 300), rng.uniform(0, 2 * np.pi, 300),
                          rng.uniform(-3, 3, 300), rng.uniform(-8, 8, 300)])

@@ -56,6 +56,7 @@ zero mean and gradient and the CasADi parameters carry zero weights and output o
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -132,7 +133,7 @@ class IncrementalSSGP(SSGP):
         max_optimization_samples: int | None = 2000,
         normalize: bool = True,
         random_state: int | None = 0,
-        linear_features: bool = False,
+        linear_features: bool | Sequence[int] = False,
         linear_std: float = 1.0,
         change_detector: ChangeDetector | None = None,
         nominal_fallback: NominalFallback | None = None,
@@ -388,6 +389,7 @@ class IncrementalSSGP(SSGP):
             "n_changes": np.array(int(getattr(self, "n_changes_", 0))),
             "base_frequencies": self.base_frequencies_,
             "linear_std": (np.zeros(0) if self.linear_std_ is None else self.linear_std_),
+            "linear_mask": (np.zeros(0) if self.linear_mask_ is None else self.linear_mask_),
             "cholesky_factor": np.stack(self._chol),  # raw factors: bit-exact round trip
             "b": self.b_,
             **std.to_arrays(),
@@ -414,7 +416,9 @@ class IncrementalSSGP(SSGP):
             random_state=None if rs < 0 else rs,
         )
         lin = np.asarray(data.get("linear_std", np.zeros(0)), dtype=float)
-        obj.linear_features = lin.size > 0
+        mask = np.asarray(data.get("linear_mask", np.ones(hyp.d_in)), dtype=float)
+        obj.linear_features = (lin.size > 0 and (
+            True if np.all(mask == 1.0) else tuple(int(c) for c in np.flatnonzero(mask))))
         std = Standardizer.from_arrays(data)
         obj.input_saturation = std.input_saturation if std.saturates else None
         obj._install(std, hyp, np.asarray(data["base_frequencies"]),

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 from .change import ChangeDetector
 from .fallback import NominalFallback
 from .hyperparameters import HyperparameterBounds
@@ -26,7 +28,7 @@ measured without it."""
 
 
 def online_ssgp(n_frequencies: int = 50, forgetting_factor: float = 0.995,
-                random_state: int | None = 0, linear_features: bool = False,
+                random_state: int | None = 0, linear_features: bool | Sequence[int] = False,
                 change_detector: ChangeDetector | None = None,
                 nominal_fallback: NominalFallback | None = None,
                 input_saturation: float | None = None) -> IncrementalSSGP:
@@ -53,8 +55,10 @@ def online_ssgp(n_frequencies: int = 50, forgetting_factor: float = 0.995,
         forgetting_factor: ``lambda``; 0.995 halves a sample's weight in ~140 steps (7 s).
         random_state: seeds the frequency draws.
         linear_features: append linear features of the inputs (:class:`~gp_agents.learners.
-            SSGP`); with the MPC's ``sensitivities=True`` inputs they are the residual's
-            explicit parametric part (:mod:`gp_agents.residual`).
+            SSGP`): ``True`` for every input, or the input columns that get one; with the
+            MPC's ``sensitivities=True`` inputs, those columns
+            (``ResidualModel.sensitivity_columns``) are the residual's explicit parametric
+            part alone (:mod:`gp_agents.residual`; recipe ``ssgp-mpc-linearized-parametric``).
         change_detector: restart from the new regime's samples when the system changes
             (:class:`~gp_agents.learners.ChangeDetector`).
         nominal_fallback: switch the residual off while it predicts the newest samples worse

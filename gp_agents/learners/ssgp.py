@@ -25,10 +25,19 @@ some inputs (damping: linear in the velocities) then extrapolates linearly outsi
 instead of decaying back to the prior mean (or, with huge ``sigma_s`` and length scales at their
 bound, of the SE part imitating a polynomial). ``sigma_l`` is one more hyperparameter of the
 marginal likelihood (bounds :attr:`HyperparameterBounds.linear_std`).
+
+``linear_features`` may also name input columns (a sequence of indices, negative ones counting
+from the end): only those get a linear feature, the others' entries of the block are zero (their
+weights stay exactly zero). With the parameter sensitivities as the last inputs
+(:mod:`gp_agents.residual`) that is the residual's parametric part alone, ``dp' S(x, u)``,
+without linear terms in the raw states and controls: those are nearly collinear with the
+sensitivities on data from a narrow region and extrapolate as an offset that the physics
+does not have (a drift of a vehicle at rest).
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import casadi as ca
@@ -50,7 +59,7 @@ from .features import (
 from .hyperparameters import GPHyperparameters, HyperparameterBounds
 from .standardization import Standardizer, check_input_saturation
 
-__all__ = ["SSGP", "ssgp_nlml"]
+__all__ = ["SSGP", "linear_mask", "ssgp_nlml"]
 
 _LOG_2PI = float(np.log(2.0 * np.pi))
 
@@ -58,7 +67,8 @@ HyperparameterSource = str | ExactGP | GPHyperparameters
 
 
 def ssgp_nlml(
-    theta: np.ndarray, Z: np.ndarray, y: np.ndarray, base: np.ndarray, linear: bool = False
+    theta: np.ndarray, Z: np.ndarray, y: np.ndarray, base: np.ndarray,
+    linear: bool | np.ndarray = False
 ) -> tuple[float, np.ndarray]:
     """SSGP negative log marginal likelihood of one output and its analytic gradient.
 
@@ -74,7 +84,8 @@ def ssgp_nlml(
         Z: (N, d) standardized inputs.
         y: (N,) standardized targets.
         base: (d, r) fixed standard-normal base frequencies.
-        linear: the features end with the linear block ``sigma_l z`` (see :class:`SSGP`).
+        linear: the features end with the linear block ``sigma_l z`` (see :class:`SSGP`);
+            a (d,) 0/1 array: ``sigma_l z * mask``, linear features of the masked columns only.
 
     Returns:
         ``(nlml, gradient (d + 2,) or (d + 3,))``.
@@ -89,8 +100,9 @@ def ssgp_nlml(
     c = sf / np.sqrt(r)
     cosU, sinU = np.cos(U), np.sin(U)
     blocks = [c * cosU, c * sinU]
-    if linear:
-        blocks.append(float(np.exp(theta[d + 2])) * Z)
+    mask = linear_mask(linear, d)
+    if mask is not None:
+        blocks.append(float(np.exp(theta[d + 2])) * (Z * mask))
     F = np.concatenate(blocks, axis=1)
     D = F.shape[1]
     A = F.T @ F
@@ -110,9 +122,45 @@ def ssgp_nlml(
     grad_ell = -np.sum(Z * (H @ omega.T), axis=0)
     grad_sn = -q / s + float(w @ w) + s * float(np.sum(Rinv * Rinv)) + (n - D)
     grad = np.r_[grad_ell, grad_sf, grad_sn]
-    if linear:
+    if mask is not None:
         grad = np.r_[grad, float(np.sum(G[:, 2 * r :] * F[:, 2 * r :]))]
     return float(nlml), grad
+
+
+def linear_mask(linear_features: bool | np.ndarray | Sequence[int] | None, d_in: int
+                ) -> np.ndarray | None:
+    """The (d_in,) 0/1 mask of the input columns with a linear feature, or None (no linear
+    features): ``True`` -> every column, a sequence of column indices (negative ones counting
+    from the end) -> those, a (d_in,) float array -> itself (a mask already).
+
+    Raises:
+        ValueError: an empty selection, an index out of range or given twice.
+    """
+    if linear_features is None or isinstance(linear_features, bool | np.bool_):
+        return np.ones(d_in) if linear_features else None
+    if isinstance(linear_features, np.ndarray) and linear_features.dtype.kind == "f":
+        if linear_features.shape != (d_in,):
+            raise ValueError(f"a linear-feature mask must have shape ({d_in},), got "
+                             f"{linear_features.shape}")
+        return linear_features
+    cols = [int(c) for c in linear_features]
+    if not cols or any(not -d_in <= c < d_in for c in cols):
+        raise ValueError(f"linear_features must be a bool or non-empty input column indices in "
+                         f"[-{d_in}, {d_in}), got {linear_features!r}")
+    positive = [c % d_in for c in cols]
+    if len(set(positive)) != len(positive):
+        raise ValueError(f"linear_features names a column twice: {linear_features!r}")
+    mask = np.zeros(d_in)
+    mask[positive] = 1.0
+    return mask
+
+
+def _selection_or_all(linear_features: Any) -> Any:
+    """``linear_features`` as :func:`linear_mask` reads it, ``True`` (all) when it is off
+    (linear features then come from copied hyperparameters)."""
+    if linear_features is None or isinstance(linear_features, bool | np.bool_):
+        return True
+    return linear_features
 
 
 class SSGP(BaseGPLearner):
@@ -130,7 +178,9 @@ class SSGP(BaseGPLearner):
         max_optimization_samples: optimize on at most this many random points (``None``: all).
         normalize: standardize inputs and outputs (ignored when copying from an ExactGP).
         random_state: seed of the frequency draws, restarts and subset.
-        linear_features: append the linear features ``sigma_l z`` (module docstring).
+        linear_features: append the linear features ``sigma_l z`` (module docstring): ``True``
+            for every input column, or a sequence of column indices (negative ones from the
+            end) for those only.
         linear_std: ``sigma_l`` when the hyperparameters are not optimized here (``"exact"``,
             an ExactGP or given :class:`GPHyperparameters`); with ``"ssgp"`` it is the
             marginal likelihood's.
@@ -144,7 +194,7 @@ class SSGP(BaseGPLearner):
         (d_out, d_in, r), cholesky_factor_ (d_out, 2r, 2r) upper ``R`` with ``A = R^T R``,
         b_ (d_out, 2r), weights_ (d_out, 2r), n_features_in_, n_outputs_, n_samples_seen_,
         linear_std_ (d_out,) ``sigma_l`` or None (``2r`` reads ``2r + d_in`` with linear
-        features).
+        features), linear_mask_ (d_in,) 0/1 mask of the columns with a linear feature or None.
     """
 
     def __init__(
@@ -158,7 +208,7 @@ class SSGP(BaseGPLearner):
         max_optimization_samples: int | None = 2000,
         normalize: bool = True,
         random_state: int | None = 0,
-        linear_features: bool = False,
+        linear_features: bool | Sequence[int] = False,
         linear_std: float = 1.0,
         input_saturation: float | None = None,
     ) -> None:
@@ -196,7 +246,8 @@ class SSGP(BaseGPLearner):
         self, Z: np.ndarray, Y: np.ndarray
     ) -> tuple[Standardizer, GPHyperparameters, np.ndarray, np.ndarray | None]:
         d_in, d_out = Z.shape[1], Y.shape[1]
-        linear = bool(self.linear_features)
+        mask = linear_mask(self.linear_features, d_in)
+        linear = mask is not None
         fixed_lin = np.full(d_out, float(self.linear_std)) if linear else None
         if linear and not (np.isfinite(self.linear_std) and self.linear_std > 0):
             raise ValueError("linear_std must be finite and positive")
@@ -249,7 +300,7 @@ class SSGP(BaseGPLearner):
         for j in range(d_out):
             Zo, yo, bj = Zs[idx], Ys[idx, j], base[j]
             theta, _ = minimize_multistart(
-                lambda t, Zo=Zo, yo=yo, bj=bj: ssgp_nlml(t, Zo, yo, bj, linear),
+                lambda t, Zo=Zo, yo=yo, bj=bj: ssgp_nlml(t, Zo, yo, bj, mask if linear else False),
                 guesses,
                 log_bounds,
                 self.max_iter,
@@ -267,6 +318,9 @@ class SSGP(BaseGPLearner):
             if not (np.all(np.isfinite(linear_std)) and np.all(linear_std > 0)):
                 raise ValueError("linear_std must be finite and positive")
         self.linear_std_ = linear_std
+        self.linear_mask_ = (None if linear_std is None
+                             else linear_mask(_selection_or_all(self.linear_features),
+                                              hyp.d_in))
         self.standardizer_ = std
         self.hyperparameters_ = hyp
         self.base_frequencies_ = base
@@ -286,7 +340,7 @@ class SSGP(BaseGPLearner):
         lin = getattr(self, "linear_std_", None)
         if lin is None:
             return F
-        return np.concatenate([F, lin[j] * Zs], axis=1)
+        return np.concatenate([F, lin[j] * (Zs * self.linear_mask_)], axis=1)
 
     def _batch_state(
         self, F: np.ndarray, y: np.ndarray, noise_std: float
@@ -357,7 +411,7 @@ class SSGP(BaseGPLearner):
         for j in range(self.n_outputs_):
             g = fourier_mean_grad(Zs, self.omega_[j], float(hyp.signal_std[j]), W[j][:D])
             if lin is not None:
-                g = g + lin[j] * W[j][D:][None, :]
+                g = g + lin[j] * (W[j][D:] * self.linear_mask_)[None, :]
             grads.append(g)
         return np.stack(grads, axis=1)
 
@@ -398,6 +452,14 @@ class SSGP(BaseGPLearner):
             ]
         return blocks
 
+    def _sym_masked(self, Zs: ca.SX | ca.MX) -> ca.SX | ca.MX:
+        """Standardized inputs (d_in, M) with the rows without a linear feature zeroed
+        (``Zs`` itself when every column has one)."""
+        mask = self.linear_mask_
+        if mask is None or np.all(mask == 1.0):
+            return Zs
+        return ca.diag(ca.DM(mask)) @ Zs
+
     def _sym_mean_var_batch(
         self, Zs: ca.MX, theta: ca.MX, j: int, variance: bool
     ) -> tuple[ca.MX, ca.MX | None]:
@@ -407,7 +469,7 @@ class SSGP(BaseGPLearner):
         phi = (lay.unpack(theta, f"sf_{j}") / np.sqrt(omega.shape[1])) * ca.vertcat(
             ca.cos(arg), ca.sin(arg))
         if self.linear_std_ is not None:
-            phi = ca.vertcat(phi, lay.unpack(theta, f"sl_{j}") * Zs)
+            phi = ca.vertcat(phi, lay.unpack(theta, f"sl_{j}") * self._sym_masked(Zs))
         mean = ca.mtimes(lay.unpack(theta, f"w_{j}").T, phi)
         if not variance:
             return mean, None
@@ -422,7 +484,7 @@ class SSGP(BaseGPLearner):
             zs, lay.unpack(theta, f"omega_{j}"), lay.unpack(theta, f"sf_{j}")
         )
         if self.linear_std_ is not None:
-            phi = ca.vertcat(phi, lay.unpack(theta, f"sl_{j}") * zs)
+            phi = ca.vertcat(phi, lay.unpack(theta, f"sl_{j}") * self._sym_masked(zs))
         mean = ca.dot(lay.unpack(theta, f"w_{j}"), phi)
         if not variance:
             return mean, None
