@@ -3,8 +3,10 @@
 Runs the benchmark's own episodes (:func:`benchmarks.trial.execute`) of ``cartpole`` /
 ``online`` with ``ssgp-mpc`` (or ``ssgp-mpc-linearized``), the learner replaced by a variant
 of :data:`VARIANTS`, on the cells ``fixed`` (``Cell()``), ``same`` (``Cell(randomize=0.1)``) and
-``diff`` (``Cell(randomize=0.1, data="diff")``). TUNING seeds only (0-9; the robustness
-preset's evaluation seeds 200-249 are not for tuning). One JSON line per episode is appended to
+``diff`` (``Cell(randomize=0.1, data="diff")``), and further cells of the cart pole,
+quadrotor and Dubins vehicle (:data:`CELLS`). TUNING seeds only (0-9, the Dubins cells 0-29;
+at most 49: the robustness preset's evaluation seeds 200-249 are not for tuning). Variant
+``own`` runs the ``--controller`` recipe's own learner. One JSON line per episode is appended to
 ``--out`` (episodes already there are skipped, so a run can be resumed or extended), then the
 Markdown table of all recorded episodes is printed::
 
@@ -111,6 +113,11 @@ CELLS: dict[str, dict[str, Any]] = {
     "quad-payload": {"env": "quadrotor", "scenario": "online-payload"},
     "quad-diff": {"env": "quadrotor", "randomize": 0.1, "data": "diff"},
     "quad-noise": {"env": "quadrotor", "noise": 0.005},
+    "dub-fixed": {"env": "dubins", "scenario": "paper"},
+    "dub-same": {"env": "dubins", "scenario": "paper", "randomize": 0.1},
+    "dub-diff": {"env": "dubins", "scenario": "paper", "randomize": 0.1, "data": "diff"},
+    "dub-noise": {"env": "dubins", "scenario": "paper", "noise": 0.005},
+    "dub-wear": {"env": "dubins", "scenario": "paper-wear"},
 }
 """Cells by name: :class:`benchmarks.trial.Cell` settings, and the env and scenario if not
 ``cartpole`` / ``online``."""
@@ -309,6 +316,7 @@ VARIANTS: dict[str, Callable[..., Any]] = {
     "sat20-gate-detect-ls5": _saturated(20.0),
     "sat30-gate-detect-ls5": _saturated(30.0),
     "recipe": _recipe,  # whatever online_ssgp() is on this checkout
+    "own": _recipe,  # not patched: the --controller recipe's own learner (run_one)
 }
 
 
@@ -354,7 +362,8 @@ def run_one(variant: str, cell: str, seed: int, controller: str) -> dict[str, An
         spread = domain_spread(env, scenario, controller)
         make = functools.partial(make, spread)
     original = controllers.make_learner
-    controllers.make_learner = lambda kind: make()
+    if variant != "own":
+        controllers.make_learner = lambda kind, *args: make()
     registered = systems._SYSTEMS["cartpole"]
     if policy is not None:
         systems._SYSTEMS["cartpole"] = dataclasses.replace(registered, data_policy=policy)
@@ -405,8 +414,8 @@ def _seeds(text: str) -> list[int]:
     for part in text.split(","):
         lo, _, hi = part.partition("-")
         seeds += list(range(int(lo), int(hi or lo) + 1))
-    if any(not 0 <= s <= 9 for s in seeds):  # the robustness preset evaluates on 200-249
-        raise SystemExit("tuning seeds are 0-9 only")
+    if any(not 0 <= s <= 49 for s in seeds):  # the robustness preset evaluates on 200-249
+        raise SystemExit("tuning seeds are 0-49 only")
     return seeds
 
 
