@@ -398,9 +398,9 @@ def make_learner(kind: str, parametric_columns: tuple[int, ...] = ()) -> Any:
     features and a :class:`~gp_agents.learners.ChangeDetector`), ``"ssgp-guarded"`` (those
     and a :class:`~gp_agents.learners.NominalFallback`), ``"ssgp-saturated"`` (those and
     the input saturation :data:`~gp_agents.learners.INPUT_SATURATION`) or
-    ``"ssgp-parametric"`` (the saturated one with linear features on ``parametric_columns``
-    only, the input's parameter sensitivities)."""
-    from gp_agents import online_ssgp
+    ``"ssgp-parametric"`` (:func:`gp_agents.parametric_ssgp` of ``parametric_columns``, the
+    input's parameter sensitivities: the saturated one with linear features on those only)."""
+    from gp_agents import online_ssgp, parametric_ssgp
     from gp_agents.learners import INPUT_SATURATION, ChangeDetector, ExactGP, NominalFallback
 
     if kind == "exact":
@@ -414,14 +414,11 @@ def make_learner(kind: str, parametric_columns: tuple[int, ...] = ()) -> Any:
     if kind == "ssgp-guarded":
         return online_ssgp(linear_features=True, change_detector=ChangeDetector(),
                            nominal_fallback=NominalFallback())
-    if kind in ("ssgp-saturated", "ssgp-parametric"):
-        if kind == "ssgp-parametric" and not parametric_columns:
-            raise ValueError("learner kind 'ssgp-parametric' needs the input's sensitivity "
-                             "columns (parametric_columns)")
-        return online_ssgp(linear_features=(parametric_columns if kind == "ssgp-parametric"
-                                            else True),
-                           change_detector=ChangeDetector(), nominal_fallback=NominalFallback(),
-                           input_saturation=INPUT_SATURATION)
+    if kind == "ssgp-saturated":
+        return online_ssgp(linear_features=True, change_detector=ChangeDetector(),
+                           nominal_fallback=NominalFallback(), input_saturation=INPUT_SATURATION)
+    if kind == "ssgp-parametric":
+        return parametric_ssgp(parametric_columns)
     raise ValueError(f"unknown learner kind {kind!r}")
 
 

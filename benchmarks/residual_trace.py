@@ -30,7 +30,7 @@ from benchmarks.cli import print_report
 from benchmarks.controllers import CONTROLLERS, ENVS, check_env_scenario, check_name
 from benchmarks.trial import Cell, TrialSpec, build_episode
 
-__all__ = ["format_trace", "trace"]
+__all__ = ["decompose", "format_decomposition", "format_trace", "trace"]
 
 
 def trace(spec: TrialSpec, steps: int | None = None) -> tuple[list[dict[str, Any]], list[str],
@@ -47,6 +47,13 @@ def trace(spec: TrialSpec, steps: int | None = None) -> tuple[list[dict[str, Any
     Raises:
         ValueError: the controller learns nothing.
     """
+    rows, outputs, inputs, _ = _run(spec, steps)
+    return rows, outputs, inputs
+
+
+def _run(spec: TrialSpec, steps: int | None) -> tuple[list[dict[str, Any]], list[str],
+                                                     list[str], dict[str, Any]]:
+    """:func:`trace`, and the end state: ``{"agent", "obs"}`` after the last step."""
     if CONTROLLERS[spec.controller].learner is None:
         raise ValueError(f"controller {spec.controller!r} learns nothing: no residual to trace")
     env, built, _ = build_episode(spec)
@@ -75,7 +82,52 @@ def trace(spec: TrialSpec, steps: int | None = None) -> tuple[list[dict[str, Any
                 "terminated" if terminated else "time limit")
             break
     env.close()
-    return rows, outputs, inputs
+    return rows, outputs, inputs, {"agent": agent, "obs": obs}
+
+
+def decompose(learner: Any, z: np.ndarray) -> list[dict[str, Any]]:
+    """The learned residual at one input ``z`` (d_in,) split into its parts, per output, in
+    the output's units: ``mean`` (the training targets' mean, the standardization's offset),
+    ``se`` (the Fourier features' part), ``linear`` ((d_in,) each linear feature's part; zeros
+    without linear features) and ``total`` (their sum, :meth:`predict` while the learner's
+    residual is on, ``on``).
+
+    Raises:
+        ValueError: not a fitted sparse-spectrum learner (:class:`gp_agents.learners.SSGP`).
+    """
+    from gp_agents.learners import SSGP
+
+    if not isinstance(learner, SSGP) or getattr(learner, "standardizer_", None) is None:
+        raise ValueError("decompose needs a fitted SSGP learner")
+    std = learner.standardizer_
+    zs = std.transform_inputs(np.asarray(z, float).reshape(1, -1))
+    n_se = 2 * learner.omega_.shape[2]
+    out = []
+    for j in range(learner.n_outputs_):
+        F, w = learner._features(zs, j)[0], learner.weights_[j]
+        linear = std.y_std[j] * F[n_se:] * w[n_se:] if F.size > n_se else np.zeros(zs.shape[1])
+        se = float(std.y_std[j] * F[:n_se] @ w[:n_se])
+        out.append(dict(mean=float(std.y_mean[j]), se=se, linear=linear,
+                        total=float(std.y_mean[j] + se + linear.sum()),
+                        on=bool(getattr(learner, "residual_on_", True))))
+    return out
+
+
+def format_decomposition(parts: list[dict[str, Any]], outputs: list[str], inputs: list[str],
+                         z: np.ndarray, zs: np.ndarray) -> str:
+    """Markdown of :func:`decompose`: one row per output, the linear parts by input (with the
+    input's value and its distance from the data in standard deviations)."""
+    head = "; ".join(f"{n} = {v:.3g} ({d:+.1f} sd)" for n, v, d in zip(inputs, z, zs,
+                                                                         strict=True))
+    lines = [f"Inputs (value, distance from the initial data in their standard deviations): "
+             f"{head}.", "",
+             "| output | total | target mean | SE part | linear parts (input order) | "
+             "residual on |", "|---|---:|---:|---:|---|---|"]
+    for name, p in zip(outputs, parts, strict=True):
+        lin = ", ".join(f"{v:+.3f}" for v in p["linear"])
+        lines.append(f"| {name} | {p['total']:+.3f} | {p['mean']:+.3f} | {p['se']:+.3f} | "
+                     f"{lin} | {'yes' if p['on'] else 'no'} |")
+    return "\n".join(lines)
 
 
 def format_trace(rows: list[dict[str, Any]], outputs: list[str],
@@ -117,6 +169,9 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--start", default="default", help="Cell.start: default or perturbed")
     parser.add_argument("--steps", type=int, help="stop after this many steps")
     parser.add_argument("--outputs", help="comma-separated residual output indices to show")
+    parser.add_argument("--decompose", metavar="U", help="after the last step, split the "
+                        "learned residual at the last state and control U (comma-separated, "
+                        "e.g. 0,0: at rest) into target mean, SE part and linear parts")
     parser.add_argument("--out", type=Path, help="also write the trace (Markdown) here")
     args = parser.parse_args(argv)
     try:
@@ -128,7 +183,9 @@ def main(argv: list[str] | None = None) -> None:
         if args.seed < 0 or (args.steps is not None and args.steps < 1):
             raise ValueError("--seed must be >= 0 and --steps >= 1")
         spec = TrialSpec("episode", args.env, scenario, args.controller, args.seed, cell=cell)
-        rows, outputs, _ = trace(spec, args.steps)
+        control = (None if args.decompose is None
+                   else np.array([float(v) for v in args.decompose.split(",")]))
+        rows, outputs, inputs, end = _run(spec, args.steps)
         show = None if not args.outputs else [int(i) for i in args.outputs.split(",")]
         if show is not None and not all(0 <= j < len(outputs) for j in show):
             raise ValueError(f"--outputs must be indices in 0..{len(outputs) - 1}")
@@ -139,6 +196,17 @@ def main(argv: list[str] | None = None) -> None:
     text = (f"# Residual trace: {args.controller}, {args.env} `{scenario}`, "
             f"{cell.describe()}, seed {args.seed}\n\n`{command.strip()}`\n\n"
             f"{format_trace(rows, outputs, show)}\n")
+    if control is not None:
+        agent, obs = end["agent"], end["obs"]
+        if control.shape != (agent.model.n_controls,):
+            parser.error(f"--decompose needs {agent.model.n_controls} control values")
+        z = agent.residual.inputs(obs[None], control[None])[0]
+        std = agent.learner.standardizer_
+        zs = (z - std.z_mean) / std.z_std
+        text += (f"\n## The learned residual after step {rows[-1]['step']} at state "
+                 f"{np.array2string(np.asarray(obs), precision=3, separator=', ')}, control "
+                 f"{np.array2string(control, separator=', ')}\n\n"
+                 f"{format_decomposition(decompose(agent.learner, z), outputs, inputs, z, zs)}\n")
     print_report(text, args.out)
 
 

@@ -19,7 +19,7 @@ from typing import Any
 
 from gp_agents.agent import Agent, Episode, rollout
 from gp_agents.data import Transitions, collect_initial_data
-from gp_agents.learners import SSGP, ExactGP, IncrementalSSGP, online_ssgp
+from gp_agents.learners import SSGP, ExactGP, IncrementalSSGP, online_ssgp, parametric_ssgp
 from gp_agents.mpc import GPInNLP, LinearizedGP, PseudospectralMPC
 from gp_agents.residual import ResidualModel
 
@@ -37,6 +37,7 @@ __all__ = [
     "Transitions",
     "collect_initial_data",
     "online_ssgp",
+    "parametric_ssgp",
     "rollout",
 ]
 

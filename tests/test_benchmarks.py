@@ -396,3 +396,28 @@ def test_the_learned_term_comparison_measures_split_latency_against_the_nominal(
     assert all(r["latency"] > 0 and np.isfinite(r["cost"]) for r in rows)
     with pytest.raises(SystemExit):
         lt.main(["--systems", "nope"])
+
+
+@pytest.mark.parametrize("linear", [False, True, (1,)], ids=["none", "all", "column 1"])
+def test_residual_decomposition_adds_up_to_the_prediction(linear: Any) -> None:
+    """``residual_trace.decompose``: target mean + SE part + linear parts = ``predict``, and a
+    column without a linear feature has no linear part."""
+    from benchmarks.residual_trace import decompose
+    from gp_agents import IncrementalSSGP
+
+    rng = np.random.default_rng(0)
+    Z = rng.uniform(-1, 1, (80, 3))
+    Y = np.c_[np.sin(2 * Z[:, 0]) + Z[:, 1], 0.5 * Z[:, 2] + 1.0]
+    learner = IncrementalSSGP(10, forgetting_factor=0.99, linear_features=linear,
+                              n_restarts=0).fit(Z, Y)
+    z = np.array([2.0, -0.5, 3.0])
+    parts = decompose(learner, z)
+    np.testing.assert_allclose([p["total"] for p in parts], learner.predict(z[None])[0],
+                               rtol=1e-10, atol=1e-12)
+    for p in parts:
+        if linear is False:
+            assert np.all(p["linear"] == 0.0)
+        elif linear == (1,):
+            assert p["linear"][0] == 0.0 and p["linear"][2] == 0.0
+    with pytest.raises(ValueError, match="fitted SSGP"):
+        decompose(IncrementalSSGP(10), z)

@@ -14,7 +14,13 @@ from .exact_gp import ExactGP
 from .fallback import NominalFallback
 from .hyperparameters import GPHyperparameters, HyperparameterBounds
 from .incremental import IncrementalSSGP
-from .recipes import INPUT_SATURATION, LENGTH_SCALE_FLOOR, LINEAR_LENGTH_SCALE_FLOOR, online_ssgp
+from .recipes import (
+    INPUT_SATURATION,
+    LENGTH_SCALE_FLOOR,
+    LINEAR_LENGTH_SCALE_FLOOR,
+    online_ssgp,
+    parametric_ssgp,
+)
 from .ssgp import SSGP
 from .standardization import Standardizer
 
@@ -32,4 +38,5 @@ __all__ = [
     "NotFittedError",
     "Standardizer",
     "online_ssgp",
+    "parametric_ssgp",
 ]
