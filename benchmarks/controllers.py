@@ -41,7 +41,8 @@ registered learned term, ``PlanningDefaults.rti_learned_dynamics``),
 ``ssgp-mpc-rti-linearized`` (the GP linearized per node on every system),
 ``ssgp-mpc-rti-zero-order`` (the GP's value frozen per node, adjoint-corrected),
 ``ssgp-mpc-rti-pattern`` (the GP linearized on the nominal Jacobian pattern, the rest
-adjoint-corrected), and each of the six with ``-split`` (``scheme="rti-split"``:
+adjoint-corrected), ``ssgp-mpc-rti-parametric`` (the learner of
+``ssgp-mpc-linearized-parametric``), and each of the seven with ``-split`` (``scheme="rti-split"``:
 preparation after the action, feedback on the measurement);
 and their converged references warm-started with the previous multipliers
 (:data:`WARM_DUAL_VARIANTS`): ``nominal-mpc-warm-duals``, ``oracle-mpc-warm-duals``.
@@ -274,8 +275,14 @@ RTI_VARIANTS["ssgp-mpc-rti-pattern"] = ControllerRecipe(
     "gains, the dropped derivatives corrected with the previous multipliers)",
     learner="ssgp", learn_online=True,
     settings=(("scheme", "rti"), ("learned_dynamics", "linearized-pattern")))
+RTI_VARIANTS["ssgp-mpc-rti-parametric"] = ControllerRecipe(
+    "ssgp-mpc-rti-parametric", "SSGP MPC, RTI parametric", "mpc",
+    "ssgp-mpc-rti whose learner is ssgp-mpc-linearized-parametric's (the parameter "
+    "sensitivities as inputs, linear features on them only, gp_agents.parametric_ssgp)",
+    learner="ssgp-parametric", learn_online=True,
+    settings=(("scheme", "rti"), ("sensitivities", True)))
 for _name in ("nominal-mpc-rti", "oracle-mpc-rti", "ssgp-mpc-rti", "ssgp-mpc-rti-linearized",
-              "ssgp-mpc-rti-zero-order", "ssgp-mpc-rti-pattern"):
+              "ssgp-mpc-rti-zero-order", "ssgp-mpc-rti-pattern", "ssgp-mpc-rti-parametric"):
     _base = RTI_VARIANTS[_name]
     RTI_VARIANTS[f"{_name}-split"] = dataclasses.replace(
         _base, name=f"{_name}-split", label=f"{_base.label}, split",

@@ -23,7 +23,10 @@ machine's load does not tip the way it moves a ratio near a threshold); then the
 Run (one core)::
 
     OMP_NUM_THREADS=1 python -m benchmarks.rti_learned_term [--systems quadrotor] \\
-        [--seeds 100-109] [--dubins-seeds 100-115] [--out FILE.md]
+        [--seeds 100-109] [--dubins-seeds 100-115] [--compare RECIPE-split,...] [--out FILE.md]
+
+``--compare`` runs further split-RTI recipes in the same lockstep (their rows take no part in
+the rule).
 """
 
 from __future__ import annotations
@@ -39,7 +42,7 @@ import numpy as np
 from tqdm import tqdm
 
 from benchmarks.cli import parse_seeds, print_report
-from benchmarks.controllers import build_controller, make_env
+from benchmarks.controllers import CONTROLLERS, build_controller, make_env
 from gp_agents.agent import rollout_lockstep
 
 __all__ = ["CASES", "RECIPES", "REFERENCES", "episode_latency", "recipes", "run", "table"]
@@ -145,10 +148,17 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--dubins-seeds", type=parse_seeds,
                         default=f"{DUBINS_TUNING_SEEDS[0]}-{DUBINS_TUNING_SEEDS[-1]}",
                         help="env seeds of the Dubins vehicle (default: 100-115)")
+    parser.add_argument("--compare", default="",
+                        help="comma-separated further split-RTI recipes run in the same "
+                             "lockstep (e.g. ssgp-mpc-rti-parametric-split)")
     parser.add_argument("--out", type=Path, help="also write the table (Markdown) here")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
     systems = [s for s in args.systems.split(",") if s]
+    compare = [c for c in args.compare.split(",") if c]
+    for c in compare:
+        if c not in CONTROLLERS or not c.endswith("-split"):
+            parser.error(f"--compare takes split-RTI recipes (names ending in -split), got {c!r}")
     unknown = sorted(set(systems) - set(CASES))
     if unknown or not systems:
         parser.error(f"unknown or no system(s) {unknown}; choose from {list(CASES)}")
@@ -156,7 +166,7 @@ def main(argv: list[str] | None = None) -> None:
     for system in systems:
         seeds = args.dubins_seeds if system == "dubins" else args.seeds
         for scenario in CASES[system]:
-            rows += run(system, scenario, seeds, recipes(system),
+            rows += run(system, scenario, seeds, (*recipes(system), *compare),
                         progress=not args.no_progress)
     command = (f"python -m benchmarks.rti_learned_term --systems {','.join(systems)} --seeds "
                f"{','.join(map(str, args.seeds))} --dubins-seeds "

@@ -108,6 +108,8 @@ STYLES: dict[str, Style] = {
     "ssgp-mpc-linearized-guarded": Style(_SSGP_LINEARIZED_GUARDED, RECEDING, "$g$"),
     "ssgp-mpc-linearized-saturated": Style(_SSGP_LINEARIZED_SATURATED, RECEDING, "$t$"),
     "ssgp-mpc-linearized-parametric": Style(_SSGP_LINEARIZED_PARAMETRIC, RECEDING, "$q$"),
+    "ssgp-mpc-rti-parametric": Style(_SSGP_LINEARIZED_PARAMETRIC, RTI, "$k$"),
+    "ssgp-mpc-rti-parametric-split": Style(_SSGP_LINEARIZED_PARAMETRIC, RTI, "$K$"),
     # the SSGP RTI plans with the system's registered learned term (a linearized residual)
     "ssgp-mpc-rti": Style(_SSGP_LINEARIZED, RTI, "8"),
     # the zero-order RTI plans with the residual's value only; "-split": preparation/feedback
