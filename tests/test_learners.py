@@ -1015,3 +1015,17 @@ def test_online_ssgp_length_scales_respect_the_recipes_floors():
     assert plain.min() >= LENGTH_SCALE_FLOOR * (1 - 1e-9)
     assert linear.min() >= LINEAR_LENGTH_SCALE_FLOOR * (1 - 1e-9)
     assert loose.min() < LINEAR_LENGTH_SCALE_FLOOR
+
+
+def test_parametric_ssgp_is_the_saturated_learner_with_linear_features_on_given_columns(data):
+    """``parametric_ssgp(columns)``: linear features on those columns only, with the change
+    detector, the nominal fallback and the input saturation; no columns is an error."""
+    from gp_agents.learners import INPUT_SATURATION, parametric_ssgp
+
+    Z, Y, _, _ = data
+    model = parametric_ssgp((-1,), n_frequencies=8).fit(Z, Y)
+    np.testing.assert_array_equal(model.linear_mask_, [0.0, 0.0, 1.0])
+    assert model.change_detector is not None and model.nominal_fallback is not None
+    assert model.standardizer_.input_saturation == INPUT_SATURATION
+    with pytest.raises(ValueError, match="sensitivities"):
+        parametric_ssgp(())

@@ -35,6 +35,11 @@ def online_ssgp(n_frequencies: int = 50, forgetting_factor: float = 0.995,
                 input_saturation: float | None = None) -> IncrementalSSGP:
     """The online learner of the paper's Algorithm 1, as this project's benchmarks use it.
 
+    Its defaults are the paper's learner, which the paper's recipes (``ssgp-mpc`` and every
+    fixed-truth table: quick, mpc-acceptance, the paper's tables, rti) run. The learner that
+    held across the robustness envelope needs the MPC's parameter sensitivities as inputs and
+    is :func:`parametric_ssgp` (its docstring says why and what it measured).
+
     An :class:`~gp_agents.learners.IncrementalSSGP` whose hyperparameters come from the SSGP's
     own marginal likelihood on the initial data, with length scales of at least one standard
     deviation of the (standardized) inputs. Without that floor the likelihood's optimum on 200
