@@ -277,7 +277,8 @@ def linearized(seeds: Sequence[int] = tuple(range(10)),
 
 RTI_CONTROLLERS = ("nominal-mpc", "nominal-mpc-warm-duals", "nominal-mpc-rti",
                    "nominal-mpc-rti-split", "ssgp-mpc", "ssgp-mpc-rti", "ssgp-mpc-rti-split",
-                   "ssgp-mpc-rti-zero-order", "ssgp-mpc-rti-zero-order-split")
+                   "ssgp-mpc-rti-zero-order", "ssgp-mpc-rti-zero-order-split",
+                   "ssgp-mpc-rti-parametric", "ssgp-mpc-rti-parametric-split")
 """The converged and real-time-iteration recipes the ``rti`` preset runs on every system
 (``ssgp-mpc-rti``: the system's registered learned term), before :func:`rti_controllers`'
 alternatives."""
