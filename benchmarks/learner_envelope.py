@@ -85,6 +85,16 @@ swing-up, which leaves the initial data's region by design and needs the learned
 Rule declared before the choice: most successes, then the lowest mean cart-pole cost: L = 30
 (:data:`gp_agents.learners.INPUT_SATURATION`, recipe ``ssgp-mpc-linearized-saturated``),
 evaluated by the ``robustness`` preset on its evaluation seeds.
+
+The saturated recipe missed Dubins goals there (47/50 on the fixed truth). On the Dubins tuning
+seeds 0-29 (``--variants own --controller ssgp-mpc-linearized-saturated --cells
+dub-fixed,dub-same,dub-diff``): 26/30, 29/30, 29/30, the misses stopped 0.12-0.25 m off.
+Why (``python -m benchmarks.residual_trace ... --decompose``): its linear features on the raw
+inputs, collinear with the sensitivities on the initial data, extrapolate as a drift at rest.
+Linear features on the sensitivities only (``--variants own --controller
+ssgp-mpc-linearized-parametric``, :func:`gp_agents.parametric_ssgp`): 30/30 in all five Dubins
+cells (seeds 0-29), every cart-pole and quadrotor cell 10/10 on seeds 0-9 but ``diff2``
+(9/10); evaluated by the ``robustness`` preset as recipe ``ssgp-mpc-linearized-parametric``.
 """
 
 from __future__ import annotations
