@@ -307,7 +307,8 @@ def rti(seeds: Sequence[int] = tuple(range(10)),
                       seeds, interleave=True)
     specs += episodes(rti_controllers("dubins"), [("dubins", "paper")], dubins_seeds,
                       interleave=True)
-    specs += tuple(TrialSpec("ssgp-act-scaling", env, scenario, "ssgp-mpc-rti", 0, param=n)
+    specs += tuple(TrialSpec("ssgp-act-scaling", env, scenario, c, 0, param=n)
+                   for c in ("ssgp-mpc-rti", "ssgp-mpc-rti-parametric")
                    for env, scenario in (("cartpole", "online"), ("quadrotor", "gp"),
                                          ("dubins", "paper"))
                    for n in act_samples)
