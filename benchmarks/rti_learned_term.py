@@ -170,7 +170,8 @@ def main(argv: list[str] | None = None) -> None:
                         progress=not args.no_progress)
     command = (f"python -m benchmarks.rti_learned_term --systems {','.join(systems)} --seeds "
                f"{','.join(map(str, args.seeds))} --dubins-seeds "
-               f"{','.join(map(str, args.dubins_seeds))}")
+               f"{','.join(map(str, args.dubins_seeds))}"
+               + (f" --compare {','.join(compare)}" if compare else ""))
     text = (f"# The SSGP RTI's learned term: full linearization vs the nominal Jacobian "
             f"pattern\n\n`OMP_NUM_THREADS=1 {command}` (tuning seeds; one lockstep episode of "
             f"each recipe per seed, system defaults otherwise). Latency: `act` time minus the "
