@@ -387,7 +387,8 @@ def robustness(seeds: Sequence[int] = ROBUSTNESS_SEEDS,
     specs = tuple(TrialSpec("episode", env, scenario, c, s, cell=cell)
                   for env, scenario, cells, env_seeds in grid for cell in cells
                   for c in ROBUSTNESS_CONTROLLERS for s in env_seeds)
-    specs += tuple(TrialSpec("episode", env, scenario, "ssgp-mpc", s, n_init=n)
+    specs += tuple(TrialSpec("episode", env, scenario, c, s, n_init=n)
+                   for c in ("ssgp-mpc", "ssgp-mpc-linearized-parametric")
                    for env, scenario, env_seeds in (("cartpole", "online", seeds),
                                                     ("quadrotor", "online", seeds),
                                                     ("dubins", "paper", dubins_seeds))
