@@ -355,7 +355,7 @@ ROBUSTNESS_CONTROLLERS = ("nominal-mpc", "ssgp-mpc", "ssgp-mpc-linearized",
                           "ssgp-mpc-sensitivities", "ssgp-mpc-linearized-sensitivities",
                           "ssgp-mpc-adaptive", "ssgp-mpc-linearized-adaptive",
                           "ssgp-mpc-linearized-guarded", "ssgp-mpc-linearized-saturated",
-                          "ssgp-mpc-linearized-parametric",
+                          "ssgp-mpc-linearized-parametric", "ssgp-mpc-rti-parametric-split",
                           "oracle-mpc")
 """The controllers of the robustness envelope (the oracle is each cell's reference)."""
 ROBUSTNESS_SEEDS = tuple(range(200, 220))
