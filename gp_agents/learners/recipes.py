@@ -101,7 +101,7 @@ def parametric_ssgp(sensitivity_columns: Sequence[int], n_frequencies: int = 50,
     region, linear features on *every* input (the raw states and controls beside the
     sensitivities) are nearly collinear with the sensitivities, and the fit spreads its slope
     over them. Outside that region the raw-input terms extrapolate as an offset the physics
-    does not have: 0.4 m before the goal the Dubins vehicle's learned model had it drift at
+    does not have: 0.6 m before the goal the Dubins vehicle's learned model had it drift at
     0.3 m/s while at rest (``d(x)/dt`` +0.21 = the targets' mean 0.32, +0.19 from the
     cos(psi) column 20 standard deviations out, +0.07 from u1, -0.37 from the sensitivity;
     ``d(y)/dt`` -0.22; the SE part nil), so it passed the goal, stopped facing away from it and
