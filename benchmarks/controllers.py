@@ -256,31 +256,36 @@ RTI_VARIANTS: dict[str, ControllerRecipe] = dict([
          "per node at the shifted plan; the quadrotor: on the nominal Jacobian pattern)",
          learner="ssgp"),
 ])
-RTI_VARIANTS["ssgp-mpc-rti-linearized"] = ControllerRecipe(
-    "ssgp-mpc-rti-linearized", "SSGP MPC, RTI linearized", "mpc",
-    "ssgp-mpc-rti with the GP linearized per node at the shifted plan on every system "
-    "(learned_dynamics='linearized': its full Jacobian in the QP)",
-    learner="ssgp", learn_online=True,
-    settings=(("scheme", "rti"), ("learned_dynamics", "linearized")))
-RTI_VARIANTS["ssgp-mpc-rti-zero-order"] = ControllerRecipe(
-    "ssgp-mpc-rti-zero-order", "SSGP MPC, RTI zero-order", "mpc",
-    "ssgp-mpc-rti with the GP's value frozen per node (learned_dynamics='zero-order': the "
-    "nominal QP structure, the gradient corrected with the previous multipliers)",
-    learner="ssgp", learn_online=True,
-    settings=(("scheme", "rti"), ("learned_dynamics", "zero-order")))
-RTI_VARIANTS["ssgp-mpc-rti-pattern"] = ControllerRecipe(
-    "ssgp-mpc-rti-pattern", "SSGP MPC, RTI pattern", "mpc",
-    "ssgp-mpc-rti with the GP's Jacobian kept only on the nominal model's Jacobian pattern "
-    "(learned_dynamics='linearized-pattern': the nominal QP structure with the learned control "
-    "gains, the dropped derivatives corrected with the previous multipliers)",
-    learner="ssgp", learn_online=True,
-    settings=(("scheme", "rti"), ("learned_dynamics", "linearized-pattern")))
-RTI_VARIANTS["ssgp-mpc-rti-parametric"] = ControllerRecipe(
-    "ssgp-mpc-rti-parametric", "SSGP MPC, RTI parametric", "mpc",
-    "ssgp-mpc-rti whose learner is ssgp-mpc-linearized-parametric's (the parameter "
-    "sensitivities as inputs, linear features on them only, gp_agents.parametric_ssgp)",
-    learner="ssgp-parametric", learn_online=True,
-    settings=(("scheme", "rti"), ("sensitivities", True)))
+
+
+def _ssgp_rti(suffix: str, label: str, description: str, learner: str = "ssgp",
+              **settings: Any) -> tuple[str, ControllerRecipe]:
+    """``ssgp-mpc-rti-<suffix>``: the one-call SSGP RTI with another learned term or learner."""
+    name = f"ssgp-mpc-rti-{suffix}"
+    return name, ControllerRecipe(name, f"SSGP MPC, RTI {label}", "mpc", description,
+                                  learner=learner, learn_online=True,
+                                  settings=(("scheme", "rti"), *settings.items()))
+
+
+RTI_VARIANTS.update([
+    _ssgp_rti("linearized", "linearized",
+              "ssgp-mpc-rti with the GP linearized per node at the shifted plan on every system "
+              "(learned_dynamics='linearized': its full Jacobian in the QP)",
+              learned_dynamics="linearized"),
+    _ssgp_rti("zero-order", "zero-order",
+              "ssgp-mpc-rti with the GP's value frozen per node (learned_dynamics='zero-order': "
+              "the nominal QP structure, the gradient corrected with the previous multipliers)",
+              learned_dynamics="zero-order"),
+    _ssgp_rti("pattern", "pattern",
+              "ssgp-mpc-rti with the GP's Jacobian kept only on the nominal model's Jacobian "
+              "pattern (learned_dynamics='linearized-pattern': the nominal QP structure with the "
+              "learned control gains, the dropped derivatives corrected with the previous "
+              "multipliers)", learned_dynamics="linearized-pattern"),
+    _ssgp_rti("parametric", "parametric",
+              "ssgp-mpc-rti whose learner is ssgp-mpc-linearized-parametric's (the parameter "
+              "sensitivities as inputs, linear features on them only, gp_agents.parametric_ssgp)",
+              learner="ssgp-parametric", sensitivities=True),
+])
 for _name in ("nominal-mpc-rti", "oracle-mpc-rti", "ssgp-mpc-rti", "ssgp-mpc-rti-linearized",
               "ssgp-mpc-rti-zero-order", "ssgp-mpc-rti-pattern", "ssgp-mpc-rti-parametric"):
     _base = RTI_VARIANTS[_name]
