@@ -155,9 +155,6 @@ def initial_data_policy(model: ControlModel, rng: np.random.Generator) -> Policy
 SYSTEM = register_system(System(
     name="cartpole", env_id="gp_envs/CartPoleSwingUp-v0",
     entry_point="gp_envs.cartpole_swingup:CartPoleSwingUpEnv", max_episode_steps=120,
-    # levenberg_marquardt: python -m benchmarks.rti_levenberg_marquardt --system cartpole
-    # --scenario online (tuning seeds; the rule in that module: 938 against 966 rejected SSGP
-    # RTI steps of 2380 at mu = 0, the same outcomes)
-    planning=PlanningDefaults(horizon=1.5, n_nodes=16, n_intervals=1, levenberg_marquardt=1e-2),
+    planning=PlanningDefaults(horizon=1.5, n_nodes=16, n_intervals=1),
     data_policy=initial_data_policy, perturbation=(0.5, 0.3, 0.1, 0.1)))
 """The cart pole's registration (:mod:`gp_envs.systems`)."""

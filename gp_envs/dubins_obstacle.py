@@ -146,9 +146,7 @@ def initial_data_policy(model: ControlModel, rng: np.random.Generator) -> Policy
 SYSTEM = register_system(System(
     name="dubins", env_id="gp_envs/DubinsObstacle-v0",
     entry_point="gp_envs.dubins_obstacle:DubinsObstacleEnv", max_episode_steps=150,
-    # levenberg_marquardt: python -m benchmarks.rti_levenberg_marquardt (tuning seeds)
-    planning=PlanningDefaults(horizon=4.0, n_nodes=12, n_intervals=2,
-                              qp_solver="active-set:piqp", levenberg_marquardt=1e-2),
+    planning=PlanningDefaults(horizon=4.0, n_nodes=12, n_intervals=2),
     data_policy=initial_data_policy,
     # data are gathered away from the obstacle: the actuator losses do not depend on position
     data_start=(-8.0, 6.0, 0.0), position_dims=2, perturbation=(0.5, 0.5, 0.3)))

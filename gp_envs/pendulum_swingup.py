@@ -122,8 +122,6 @@ SYSTEM = register_system(System(
     name="pendulum", env_id="gp_envs/PendulumSwingUp-v0",
     entry_point="gp_envs.pendulum_swingup:PendulumSwingUpEnv", max_episode_steps=100,
     # horizon chosen on seed 0 with the oracle: 1.5 s is upright at 4.0 s, 2.5 s at 2.65 s
-    # the RTI step's QP solver by measurement (benchmarks/results/rti_qp_solvers.md)
-    planning=PlanningDefaults(horizon=2.5, n_nodes=12, n_intervals=2,
-                              qp_solver="active-set:piqp"),
+    planning=PlanningDefaults(horizon=2.5, n_nodes=12, n_intervals=2),
     data_policy=initial_data_policy, perturbation=(0.3, 0.3)))
 """The pendulum's registration (:mod:`gp_envs.systems`)."""

@@ -153,12 +153,7 @@ def initial_data_policy(model: ControlModel, rng: np.random.Generator) -> Policy
 
 SYSTEM = register_system(System(
     name="quadrotor", env_id="gp_envs/Quadrotor-v0", entry_point="gp_envs.quadrotor:QuadrotorEnv",
-    max_episode_steps=120, planning=PlanningDefaults(
-        horizon=1.5, n_nodes=10, n_intervals=1,
-        # the rule of benchmarks/rti_learned_term.py on tuning seeds 100-109: the pattern
-        # term (the nominal QP's sparsity) has the lower split RTI latency on 9/10 (gp) and
-        # 10/10 (online) seeds at the same outcomes
-        rti_learned_dynamics="linearized-pattern"),
+    max_episode_steps=120, planning=PlanningDefaults(horizon=1.5, n_nodes=10, n_intervals=1),
     data_policy=initial_data_policy, position_dims=3,
     perturbation=(0.3, 0.3, 0.3, 0.05, 0.05, 0.05, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1)))
 """The quadrotor's registration (:mod:`gp_envs.systems`)."""

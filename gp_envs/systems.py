@@ -4,8 +4,8 @@ A *system* is registered once, by :func:`register_system`, next to its env class
 lines of each env module). That one call
 
 - registers the Gymnasium id (``gym.make(system.env_id)``),
-- gives model-based controllers their default planning settings (:class:`PlanningDefaults`,
-  read by :meth:`gp_agents.PseudospectralMPC.from_env`),
+- gives model-based controllers the system's time scales (:class:`PlanningDefaults`: horizon and
+  resolution, read by :meth:`gp_agents.PseudospectralMPC.from_env`),
 - gives the learning controllers their initial-data controller (:attr:`System.data_policy`,
   read by :func:`gp_agents.data.collect_initial_data`), and
 - makes the system a benchmark env (``python -m benchmarks --envs NAME``).
@@ -59,32 +59,22 @@ DataPolicy = Callable[["ControlModel", np.random.Generator], Policy]
 
 @dataclass(frozen=True)
 class PlanningDefaults:
-    """Default settings of a pseudospectral MPC for a system (what its author measured works).
+    """A system's time scales for a model-based controller: how far ahead to look and how finely
+    (what the system's author measured works). Solver tuning (QP solvers, regularization, how a
+    learned term enters a real-time iteration) is the controller's business and is registered
+    with the controller (``gp_agents.mpc.tuning``), not here.
 
     Attributes:
         horizon: receding horizon, seconds.
         n_nodes: Legendre-Gauss nodes per interval of the polynomial part of the horizon.
         n_intervals: intervals of the polynomial part (after the held control periods).
         nodes_per_period: LG nodes in each held control period of an episodic plan.
-        qp_solver: the real-time iteration's QP solver: a CasADi ``conic`` plugin name, or
-            ``"active-set:<plugin>"`` (the RTI's active-set solve from the shifted plan, that
-            plugin as its fallback; ``gp_agents.mpc.rti.resolve_qp_solver``).
-        levenberg_marquardt: the real-time iteration's ``mu`` >= 0 on the QP Hessian's
-            diagonal (``gp_agents.mpc.rti.RTIPlanner``); 0: the plain Gauss-Newton step.
-        rti_learned_dynamics: how a learned residual enters the real-time iteration's QP when
-            the MPC is given none: a ``learned_dynamics`` name of
-            ``gp_agents.mpc.controller.LEARNED_TERMS`` (checked when an MPC is built), e.g.
-            ``"linearized"`` (the residual linearized per node) or ``"linearized-pattern"``
-            (only its entries on the nominal Jacobian's pattern).
     """
 
     horizon: float
     n_nodes: int
     n_intervals: int = 1
     nodes_per_period: int = 3
-    qp_solver: str = "active-set:proxqp"
-    levenberg_marquardt: float = 0.0
-    rti_learned_dynamics: str = "linearized"
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.horizon) and self.horizon > 0):
@@ -95,12 +85,6 @@ class PlanningDefaults:
             if not isinstance(value, (int, np.integer)) or value < 1:
                 raise ValueError(f"PlanningDefaults: {name} must be an integer >= 1, "
                                  f"got {value!r}")
-        if not (np.isfinite(self.levenberg_marquardt) and self.levenberg_marquardt >= 0):
-            raise ValueError(f"PlanningDefaults: levenberg_marquardt must be a finite number "
-                             f">= 0, got {self.levenberg_marquardt!r}")
-        if not (isinstance(self.rti_learned_dynamics, str) and self.rti_learned_dynamics):
-            raise ValueError(f"PlanningDefaults: rti_learned_dynamics must be a learned_dynamics "
-                             f"name, got {self.rti_learned_dynamics!r}")
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,103 @@
+"""Per-system tuning of this package's solvers, keyed by system name.
+
+A system (:func:`gp_envs.register_system`) declares only its time scales
+(:class:`gp_envs.PlanningDefaults`: horizon and resolution). How *this* controller's real-time
+iteration solves its QPs on that system is controller tuning and lives here:
+:class:`RTITuning`, registered with :func:`register_rti_tuning` and read by
+:func:`rti_tuning` when an MPC with ``scheme=RTI(...)`` is built without an explicit setting.
+
+The built-in systems' entries were chosen by measurement on tuning seeds (the studies
+``rti_qp_solvers``, ``rti_levenberg_marquardt`` and ``rti_learned_term``; their decision records
+are in the documentation):
+
+- QP solver: the active-set solve from the shifted plan's active set
+  (:class:`~gp_agents.mpc.active_set.ActiveSetQP`) halves the median RTI step or better on every
+  system at the same closed-loop costs. Its fallback plugin is proxqp (cart pole, quadrotor), and
+  piqp on the Dubins vehicle (whose soft obstacle margin makes the Hessian indefinite near the
+  obstacle, where proxqp is slow or fails) and the pendulum. hpipm cannot take the
+  pseudospectral NLP's structure (one dense LG interval is no stage-wise OCP); daqp needs a
+  positive definite Hessian.
+- Levenberg-Marquardt ``mu``: 0.01 on the Dubins vehicle, where the plain step of the split SSGP
+  RTI alternates between turning left and right near ``v = 0`` (0.01 reaches the goal on every
+  tuning seed and cuts the rejected steps, 0.03 loses a nominal episode), and on the cart pole
+  (fewer rejected SSGP RTI steps at the same outcomes). Other systems: 0.
+- Learned term: the residual linearized per node, except on the quadrotor, where the entries on
+  the nominal Jacobian's pattern only (the nominal QP's sparsity) give the lower split-RTI
+  latency at the same outcomes.
+
+A system without an entry gets :class:`RTITuning`'s defaults; a model of no registered system at
+all gets the plain ``"osqp"`` QP solver.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from gp_envs.model import ControlModel
+from gp_envs.systems import SYSTEMS
+
+__all__ = ["RTI_TUNING", "RTITuning", "register_rti_tuning", "rti_tuning"]
+
+
+@dataclass(frozen=True)
+class RTITuning:
+    """How the real-time iteration solves on one system (module docstring).
+
+    Attributes:
+        qp_solver: a CasADi ``conic`` plugin name, or ``"active-set:<plugin>"`` (the active-set
+            solve from the shifted plan, that plugin as its fallback).
+        levenberg_marquardt: ``mu`` >= 0 on the QP Hessian's diagonal; 0: plain Gauss-Newton.
+        learned_term: how a learned residual enters the QP when the MPC names none: a name of
+            :data:`gp_agents.mpc.controller.LEARNED_TERMS` (``"linearized"``,
+            ``"linearized-pattern"``, ``"zero-order"``).
+    """
+
+    qp_solver: str = "active-set:proxqp"
+    levenberg_marquardt: float = 0.0
+    learned_term: str = "linearized"
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.qp_solver, str) and self.qp_solver):
+            raise ValueError(f"RTITuning: qp_solver must be a plugin name, got "
+                             f"{self.qp_solver!r}")
+        if not (np.isfinite(self.levenberg_marquardt) and self.levenberg_marquardt >= 0):
+            raise ValueError(f"RTITuning: levenberg_marquardt must be a finite number >= 0, "
+                             f"got {self.levenberg_marquardt!r}")
+        if not (isinstance(self.learned_term, str) and self.learned_term):
+            raise ValueError(f"RTITuning: learned_term must be a learned-term name, got "
+                             f"{self.learned_term!r}")
+
+
+RTI_TUNING: dict[str, RTITuning] = {
+    "cartpole": RTITuning(levenberg_marquardt=1e-2),
+    "quadrotor": RTITuning(learned_term="linearized-pattern"),
+    "dubins": RTITuning(qp_solver="active-set:piqp", levenberg_marquardt=1e-2),
+    "pendulum": RTITuning(qp_solver="active-set:piqp"),
+}
+"""The registered tuning by system name (the built-in systems'; module docstring)."""
+
+UNREGISTERED = RTITuning(qp_solver="osqp")
+"""The tuning of a model whose system is not registered at all."""
+
+
+def register_rti_tuning(system: str, tuning: RTITuning) -> RTITuning:
+    """Register (or replace) the RTI tuning of the system called ``system``; returns it.
+
+    Raises:
+        TypeError: ``tuning`` is not an :class:`RTITuning`.
+    """
+    if not isinstance(tuning, RTITuning):
+        raise TypeError(f"tuning must be an RTITuning, got {type(tuning).__name__}")
+    RTI_TUNING[str(system)] = tuning
+    return tuning
+
+
+def rti_tuning(model: ControlModel | str) -> RTITuning:
+    """The RTI tuning of ``model``'s system (a model, or a system name): its registered entry,
+    else the defaults (a registered system) or :data:`UNREGISTERED` (no registered system)."""
+    name = model if isinstance(model, str) else model.name
+    if name in RTI_TUNING:
+        return RTI_TUNING[name]
+    return RTITuning() if name in SYSTEMS else UNREGISTERED
