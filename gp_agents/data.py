@@ -14,6 +14,7 @@ The data is the list of observed transitions ``(x_k, u_k, x_{k+1})``; see
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -42,11 +43,18 @@ class Transitions:
 
 
 def collect_initial_data(env: gym.Env, n_points: int = 200, seed: int = 0,
-                         action_noise: float = 0.05) -> Transitions:
+                         action_noise: float = 0.05, *, same_system: bool = True
+                         ) -> Transitions:
     """Roll out the crude sinusoid-tracking controller of ``env``'s system on ``env``.
 
     The controller is the system's registered :attr:`gp_envs.systems.System.data_policy`,
-    started from its ``data_start`` state if it has one.
+    started from its ``data_start`` state if it has one. By default the data come from the
+    system that ``env.reset(seed=seed)`` gives: with a randomized truth (``randomize > 0``) or a
+    redrawn nominal model, the episode you then run with ``env.reset(seed=seed)`` is on the
+    same system the data came from (every data episode after the first resets with
+    ``options={"keep_system": True}``). In a time-varying scenario the data episodes see its
+    changes as any episode does; make the data env with ``time_varying=False`` for data from
+    before them.
 
     Args:
         env: a ``gp_envs`` environment (made with ``gym.make``); it is reset here.
@@ -54,6 +62,9 @@ def collect_initial_data(env: gym.Env, n_points: int = 200, seed: int = 0,
         seed: seeds the env resets, the reference and the action noise.
         action_noise: standard deviation of Gaussian action noise, as a fraction of the action
             range.
+        same_system: False: each data episode is an ordinary reset with seed
+            ``seed * 1000 + k``, so on a randomized env the data come from *other* systems
+            than the episode of ``seed`` (data from other draws, on purpose).
 
     Returns:
         The transitions, ``len == n_points``.
@@ -62,16 +73,22 @@ def collect_initial_data(env: gym.Env, n_points: int = 200, seed: int = 0,
         ValueError: for an env of an unknown system or ``n_points < 1``.
     """
     system = system_of(env)
-    if n_points < 1:
+    if isinstance(n_points, bool) or int(n_points) < 1:
         raise ValueError(f"n_points must be >= 1, got {n_points}")
+    n_points = int(n_points)
     rng = np.random.default_rng(seed)
+    if same_system:
+        env.reset(seed=seed)  # draws the system that the episode of this seed runs on
     X, U, Xn = [], [], []
     episode = 0
     while sum(len(x) for x in X) < n_points:
-        options = None if system.data_start is None else {"state": np.array(system.data_start)}
+        options: dict[str, Any] = {} if system.data_start is None else {
+            "state": np.array(system.data_start)}
+        if same_system:
+            options["keep_system"] = True
         agent = _NoisyTracker(env, rng, action_noise)
-        run = rollout(env, agent, seed * 1000 + episode, options=options,
-                      max_steps=n_points - sum(len(x) for x in X))
+        run = rollout(env, agent, None if same_system else seed * 1000 + episode,
+                      options=options or None, max_steps=n_points - sum(len(x) for x in X))
         X.append(run.observations[:-1])
         U.append(run.actions.astype(np.float32).astype(float))
         Xn.append(run.observations[1:])

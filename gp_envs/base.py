@@ -178,6 +178,7 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
         self.observation_noise = self._check_noise(observation_noise)
         self._noise_rng: np.random.Generator | None = None
         self._episode_truth = dict(self._base_truth)
+        self._system_drawn = False  # whether a reset has drawn the episode's system
         self._next_change = 0
         self.nominal_model: ControlModel = self._make_model(dict(spec.nominal))
         """What a controller may know: nominal parameters, dynamics, bounds, task."""
@@ -362,18 +363,31 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
 
         Args:
             seed: seeds the env's RNG (initial-state noise, parameter draws).
-            options: ``{"state": array (n,)}`` starts from that state (physical units).
+            options: ``{"state": array (n,)}`` starts from that state (physical units);
+                ``{"keep_system": True}`` keeps the previous episode's system (its randomized
+                truth and nominal model, from before any of the scenario's changes) instead of
+                drawing a new one: more episodes on the same system, e.g. to collect data on it.
         """
+        options = options or {}
+        unknown = set(options) - {"state", "keep_system"}
+        if unknown:
+            raise ValueError(f"unknown reset option(s) {sorted(unknown)}; known: "
+                             f"['keep_system', 'state']")
+        keep = bool(options.get("keep_system", False))
+        if keep and not self._system_drawn:
+            raise ValueError("reset(options={'keep_system': True}) needs an earlier reset that "
+                             "drew the system")
         super().reset(seed=seed)
         if seed is not None:
             self._noise_rng = np.random.default_rng([seed, NOISE_STREAM])
         elif self._noise_rng is None:
             self._noise_rng = np.random.default_rng()
-        self._draw_episode_models()
-        options = options or {}
-        unknown = set(options) - {"state"}
-        if unknown:
-            raise ValueError(f"unknown reset option(s) {sorted(unknown)}; known: ['state']")
+        if keep:
+            self._plant = self._make_model(self._episode_truth)
+            self._next_change = 0
+        else:
+            self._draw_episode_models()
+        self._system_drawn = True
         if "state" in options:
             state = np.asarray(options["state"], dtype=float)
             if state.shape != (len(self.physics.STATE_NAMES),):
