@@ -2,8 +2,11 @@
 
 - :class:`Agent` (``reset``, ``act``, ``observe``) and :func:`rollout`, the closed loop every
   controller here runs in.
+- :func:`make_mpc`: the MPC of a named recipe (:data:`RECIPES`; ``make_mpc(env)`` is the
+  recommended ``"robust"`` one), as ``gym.make`` is for envs.
 - :class:`PseudospectralMPC`: Gauss pseudospectral MPC on nominal physics plus a learned GP
-  residual (the paper's Algorithm 1), built with :meth:`PseudospectralMPC.from_env`.
+  residual (the paper's Algorithm 1), its settings grouped in :class:`RecedingHorizon` /
+  :class:`Episodic`, :class:`Converged` / :class:`RTI`, :class:`Residual`, :class:`Constraints`.
 - Residual learners: :class:`ExactGP`, :class:`SSGP`, :class:`IncrementalSSGP`.
 - :func:`collect_initial_data`: the crude sinusoid-tracking controller's initial data.
 - :class:`RLAgent` (needs the ``rl`` extra): stable-baselines3 policies with the same
@@ -20,22 +23,44 @@ from typing import Any
 from gp_agents.agent import Agent, Episode, rollout
 from gp_agents.data import Transitions, collect_initial_data
 from gp_agents.learners import SSGP, ExactGP, IncrementalSSGP, online_ssgp, parametric_ssgp
-from gp_agents.mpc import GPInNLP, LinearizedGP, PseudospectralMPC
+from gp_agents.mpc import (
+    RECIPES,
+    RTI,
+    Constraints,
+    ControllerDegradedWarning,
+    Converged,
+    Episodic,
+    GPInNLP,
+    LinearizedGP,
+    PseudospectralMPC,
+    RecedingHorizon,
+    Residual,
+    make_mpc,
+)
 from gp_agents.residual import ResidualModel
 
 __all__ = [
+    "RECIPES",
+    "RTI",
     "SSGP",
     "Agent",
+    "Constraints",
+    "ControllerDegradedWarning",
+    "Converged",
     "Episode",
+    "Episodic",
     "ExactGP",
     "GPInNLP",
     "IncrementalSSGP",
     "LinearizedGP",
     "PseudospectralMPC",
     "RLAgent",
+    "RecedingHorizon",
+    "Residual",
     "ResidualModel",
     "Transitions",
     "collect_initial_data",
+    "make_mpc",
     "online_ssgp",
     "parametric_ssgp",
     "rollout",

@@ -13,11 +13,10 @@ import gp_envs
 from gp_agents.agent import rollout
 from gp_agents.data import collect_initial_data
 from gp_agents.learners import IncrementalSSGP
-from gp_agents.mpc import GPInNLP, LinearizedGP, PseudospectralMPC, online_ssgp
+from gp_agents.mpc import Converged, GPInNLP, LinearizedGP, PseudospectralMPC, online_ssgp
 from gp_agents.mpc.active_set import ActiveSetQP
 from gp_agents.mpc.gp_pattern import nominal_pattern
 from gp_agents.residual import ResidualModel
-from gp_envs.systems import get_system
 
 CART = "gp_envs/CartPoleSwingUp-v0"
 QUAD = "gp_envs/Quadrotor-v0"
@@ -215,23 +214,23 @@ def test_linearized_nlp_has_no_learner_parameters_and_is_built_once():
     diag = agent.diagnostics_arrays()
     assert np.all(diag["solves"][1:] == 1)  # warm steps: one solve (max_linearizations=1)
     assert np.all(np.isfinite(diag["linearization_error"]))
-    with pytest.raises(ValueError, match="learned_dynamics"):
-        PseudospectralMPC.from_env(env, learned_dynamics="taylor")
+    with pytest.raises(ValueError, match="term must be one of"):
+        PseudospectralMPC.from_env(env, online_ssgp(5), term="taylor")
     with pytest.raises(ValueError, match="max_linearizations"):
         LinearizedGP(max_linearizations=0)
-    with pytest.raises(TypeError, match="learned_dynamics"):
-        PseudospectralMPC.from_env(env, learned_dynamics=3)
+    with pytest.raises(TypeError, match="term must be a name"):
+        PseudospectralMPC.from_env(env, online_ssgp(5), term=3)
 
 
 
 def test_without_a_learned_term_converged_puts_the_gp_in_the_nlp_and_rti_the_systems_term():
     """``learned_dynamics=None``: the paper's OCP (the GP inside the NLP) when converged; for
-    the real-time iterations the system's registered ``rti_learned_dynamics`` (the quadrotor
-    registers the pattern term, the others the full linearization); an explicit name wins;
+    the real-time iterations the system's tuned term (``gp_agents.mpc.tuning``: the quadrotor
+    has the pattern term, the others the full linearization); an explicit name wins;
     a registered name that is no learned term is a named error."""
-    from gp_agents.mpc import PatternLinearizedGP
+    from gp_agents.mpc import PatternLinearizedGP, RTITuning, register_rti_tuning
     from gp_agents.mpc.controller import default_learned_dynamics
-    from gp_envs.systems import PlanningDefaults
+    from gp_agents.mpc.tuning import RTI_TUNING
 
     for env_id, rti_term in ((QUAD, PatternLinearizedGP), (CART, LinearizedGP),
                              (DUBINS, LinearizedGP)):
@@ -245,8 +244,12 @@ def test_without_a_learned_term_converged_puts_the_gp_in_the_nlp_and_rti_the_sys
         assert explicit.term.name == "zero-order"
     assert default_learned_dynamics("rti", None) == "linearized"
     assert default_learned_dynamics("converged", None) == "exact"
-    with pytest.raises(ValueError, match="rti_learned_dynamics 'taylor'"):
-        default_learned_dynamics("rti", PlanningDefaults(1.0, 8, rti_learned_dynamics="taylor"))
+    register_rti_tuning("tuning-test", RTITuning(learned_term="taylor"))
+    try:
+        with pytest.raises(ValueError, match="learned_term 'taylor'"):
+            default_learned_dynamics("rti", "tuning-test")
+    finally:
+        del RTI_TUNING["tuning-test"]
 
 
 # ------------------------------------------------------------------------ agent contract
@@ -347,7 +350,7 @@ def test_failed_solves_fall_back_without_crashing():
     obs, _ = env.reset(seed=0)
     for _ in range(3):  # good plans first
         obs, *_ = env.step(agent.act(obs))
-    agent.solver_options = {"ipopt": {"max_iter": 1}}
+    agent.scheme_settings = Converged(max_iterations=1)
     agent.planner = None  # rebuild with a solver that cannot converge
     for _ in range(3):
         action = agent.act(obs)
@@ -495,7 +498,9 @@ def test_the_levenberg_marquardt_term_is_mu_on_the_rti_hessians_diagonal():
     p = plain.planning.param_values()
     H0, H1 = (np.asarray(ca.DM(pl._derivatives(w, p)[3])) for pl in (plain, damped))
     np.testing.assert_allclose(H1 - H0, 0.25 * np.eye(w.size), atol=1e-12)
-    default = get_system("dubins").planning.levenberg_marquardt
+    from gp_agents.mpc import rti_tuning
+
+    default = rti_tuning("dubins").levenberg_marquardt
     assert default > 0 and PseudospectralMPC.from_env(env, scheme="rti-split")._planner() \
         .levenberg_marquardt == default
     for bad in (-1e-3, float("nan"), float("inf")):

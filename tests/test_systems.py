@@ -123,7 +123,10 @@ def test_one_registration_gives_env_mpc_defaults_data_and_benchmark_entry(user_s
     env = gym.make("user/PointMass-v0")
     assert env.spec.max_episode_steps == 40 and system_of(env) is user_system
     agent = PseudospectralMPC.from_env(env)
-    assert agent.schedule.horizon == pytest.approx(1.2) and agent.qp_solver == "active-set:proxqp"
+    assert agent.schedule.horizon == pytest.approx(1.2) and agent.qp_solver is None
+    # a registered system without RTI tuning of its own gets the defaults
+    rti = PseudospectralMPC.from_env(env, scheme="rti")
+    assert rti.qp_solver == "active-set:proxqp" and rti.levenberg_marquardt == 0.0
     data = collect_initial_data(env, 30, seed=0)
     assert data.X.shape == (30, 2)
     np.testing.assert_allclose(data.X[0], [-1.0, 0.0])  # the registered data start
@@ -177,14 +180,35 @@ def test_registration_refuses_inconsistent_systems(user_system):
 @pytest.mark.parametrize(("kwargs", "message"), [
     ({"horizon": 0.0, "n_nodes": 8}, "horizon"), ({"horizon": np.nan, "n_nodes": 8}, "horizon"),
     ({"horizon": 1.0, "n_nodes": 0}, "n_nodes"), ({"horizon": 1.0, "n_nodes": 2.5}, "n_nodes"),
-    ({"horizon": 1.0, "n_nodes": 8, "n_intervals": 0}, "n_intervals"),
-    ({"horizon": 1.0, "n_nodes": 8, "levenberg_marquardt": -1e-3}, "levenberg_marquardt"),
-    ({"horizon": 1.0, "n_nodes": 8, "levenberg_marquardt": np.inf}, "levenberg_marquardt"),
-    ({"horizon": 1.0, "n_nodes": 8, "rti_learned_dynamics": ""}, "rti_learned_dynamics"),
-    ({"horizon": 1.0, "n_nodes": 8, "rti_learned_dynamics": None}, "rti_learned_dynamics")])
+    ({"horizon": 1.0, "n_nodes": 8, "n_intervals": 0}, "n_intervals")])
 def test_planning_defaults_are_checked(kwargs, message):
     with pytest.raises(ValueError, match=message):
         PlanningDefaults(**kwargs)
+
+
+@pytest.mark.parametrize(("kwargs", "message"), [
+    ({"levenberg_marquardt": -1e-3}, "levenberg_marquardt"),
+    ({"levenberg_marquardt": np.inf}, "levenberg_marquardt"),
+    ({"learned_term": ""}, "learned_term"), ({"learned_term": None}, "learned_term"),
+    ({"qp_solver": ""}, "qp_solver")])
+def test_rti_tuning_is_checked(kwargs, message):
+    from gp_agents.mpc import RTITuning
+
+    with pytest.raises(ValueError, match=message):
+        RTITuning(**kwargs)
+
+
+def test_gp_envs_knows_no_solver():
+    """Solver tuning lives with the controller: no gp_envs module names a QP solver or the
+    real-time iteration's settings."""
+    import pathlib
+
+    import gp_envs as package
+
+    root = pathlib.Path(package.__file__).parent
+    words = ("qp_solver", "levenberg", "proxqp", "piqp", "osqp", "rti_learned")
+    hits = [(p.name, w) for p in root.rglob("*.py") for w in words if w in p.read_text()]
+    assert hits == []
 
 
 def test_unknown_systems_are_named_errors():
@@ -215,8 +239,10 @@ def test_the_pendulum_is_added_in_its_own_files_only():
     """The fourth system needed no edit elsewhere: outside its physics module and env module,
     only the package's import list (gp_envs/__init__, gp_envs/physics/__init__) and the
     experiments that study it (benchmarks/presets.py) name it."""
-    allowed = {"gp_envs/pendulum_swingup.py", "gp_envs/physics/pendulum.py",
-               "gp_envs/__init__.py", "gp_envs/physics/__init__.py", "benchmarks/presets.py"}
+    # the RTI's per-system solver tuning is the controller's (keyed by name; optional)
+    allowed = {"gp_agents/mpc/tuning.py", "gp_envs/pendulum_swingup.py",
+               "gp_envs/physics/pendulum.py", "gp_envs/__init__.py", "gp_envs/physics/__init__.py",
+               "benchmarks/presets.py"}
     named = {str(p.relative_to(REPO)) for pkg in ("gp_envs", "gp_agents", "benchmarks")
              for p in (REPO / pkg).rglob("*.py")
              if re.search(r"\bpendulum\b|PendulumSwingUp", p.read_text())}

@@ -133,7 +133,7 @@ class IncrementalSSGP(SSGP):
         max_optimization_samples: int | None = 2000,
         normalize: bool = True,
         random_state: int | None = 0,
-        linear_features: bool | Sequence[int] = False,
+        linear_features: bool | Sequence[int] | str = False,
         linear_std: float = 1.0,
         change_detector: ChangeDetector | None = None,
         nominal_fallback: NominalFallback | None = None,

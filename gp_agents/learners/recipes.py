@@ -29,7 +29,8 @@ measured without it."""
 
 
 def online_ssgp(n_frequencies: int = 50, forgetting_factor: float = 0.995,
-                random_state: int | None = 0, linear_features: bool | Sequence[int] = False,
+                random_state: int | None = 0,
+                linear_features: bool | Sequence[int] | str = False,
                 change_detector: ChangeDetector | None = None,
                 nominal_fallback: NominalFallback | None = None,
                 input_saturation: float | None = None) -> IncrementalSSGP:
@@ -61,10 +62,10 @@ def online_ssgp(n_frequencies: int = 50, forgetting_factor: float = 0.995,
         forgetting_factor: ``lambda``; 0.995 halves a sample's weight in ~140 steps (7 s).
         random_state: seeds the frequency draws.
         linear_features: append linear features of the inputs (:class:`~gp_agents.learners.
-            SSGP`): ``True`` for every input, or the input columns that get one; with the
-            MPC's ``sensitivities=True`` inputs, those columns
-            (``ResidualModel.sensitivity_columns``) are the residual's explicit parametric
-            part alone (:mod:`gp_agents.residual`; recipe ``ssgp-mpc-linearized-parametric``).
+            SSGP`): ``True`` for every input, the input columns that get one, or
+            ``"sensitivities"``: the parameter-sensitivity columns of the MPC the learner is
+            given to (which needs ``Residual(sensitivities=True)`` and fills them in), the
+            residual's explicit parametric part alone (:mod:`gp_agents.residual`).
         change_detector: restart from the new regime's samples when the system changes
             (:class:`~gp_agents.learners.ChangeDetector`).
         nominal_fallback: switch the residual off while it predicts the newest samples worse
@@ -82,51 +83,50 @@ def online_ssgp(n_frequencies: int = 50, forgetting_factor: float = 0.995,
                                              else LENGTH_SCALE_FLOOR, 100.0)))
 
 
-def parametric_ssgp(sensitivity_columns: Sequence[int], n_frequencies: int = 50,
+def parametric_ssgp(sensitivity_columns: Sequence[int] | None = None, n_frequencies: int = 50,
                     forgetting_factor: float = 0.995, random_state: int | None = 0
                     ) -> IncrementalSSGP:
-    """The learner that held across the robustness envelope (issue 18): the residual's
-    parametric part plus the SSGP around it, restarted on a change, off while it predicts
-    worse than the nominal model, with saturated inputs.
+    """The learner of the ``"robust"`` recipe (:func:`gp_agents.make_mpc`), which held across
+    randomized, changed and noisy systems: the residual's parametric part plus the SSGP around
+    it, restarted on a change, off while it predicts worse than the nominal model, with
+    saturated inputs.
 
-    For an MPC with ``sensitivities=True`` (the learner's last inputs are the nominal model's
-    parameter sensitivities ``S = d f / d p``; their columns are
-    ``ResidualModel.sensitivity_columns``, e.g. ``agent.residual.sensitivity_columns``):
-    :func:`online_ssgp` with linear features on those columns only (the parametric part
-    ``dp' S(x, u)``, :class:`~gp_agents.learners.SSGP`), a
-    :class:`~gp_agents.learners.ChangeDetector`, a :class:`~gp_agents.learners.NominalFallback`
-    and inputs saturated at :data:`INPUT_SATURATION` standard deviations.
+    For an MPC with ``Residual(sensitivities=True)`` (the learner's last inputs are the nominal
+    model's parameter sensitivities ``S = d f / d p``): :func:`online_ssgp` with linear features
+    on those columns only (the parametric part ``dp' S(x, u)``,
+    :class:`~gp_agents.learners.SSGP`), a :class:`~gp_agents.learners.ChangeDetector`, a
+    :class:`~gp_agents.learners.NominalFallback` and inputs saturated at
+    :data:`INPUT_SATURATION` standard deviations. Without ``sensitivity_columns`` the MPC the
+    learner is given to fills in its own (``linear_features="sensitivities"``).
 
-    Why (measured; the README, *Online learning across the envelope*): on data from a narrow
-    region, linear features on *every* input (the raw states and controls beside the
-    sensitivities) are nearly collinear with the sensitivities, and the fit spreads its slope
-    over them. Outside that region the raw-input terms extrapolate as an offset the physics
-    does not have: 0.6 m before the goal the Dubins vehicle's learned model had it drift at
-    0.3 m/s while at rest (``d(x)/dt`` +0.21 = the targets' mean 0.32, +0.19 from the
-    cos(psi) column 20 standard deviations out, +0.07 from u1, -0.37 from the sensitivity;
-    ``d(y)/dt`` -0.22; the SE part nil), so it passed the goal, stopped facing away from it and
-    stayed 0.13 m off (tuning seed 6: ``python -m benchmarks.residual_trace --env dubins
-    --scenario paper --controller ssgp-mpc-linearized-saturated --seed 6 --steps 61
-    --decompose 0,0``). The Dubins rates are the sensitivities times ``dp`` exactly, so
-    restricting the linear part to them removes the offset. With it (recipe
-    ``ssgp-mpc-linearized-parametric``, ``python -m benchmarks --preset robustness
-    --controllers ssgp-mpc-linearized-parametric``, evaluation seeds): every cell of the
-    envelope on every env at its target, the Dubins vehicle 50/50 in every cell (the
-    saturated recipe, linear features on every input: 47/50 on the fixed truth).
+    Why linear features on the sensitivities only: on data from a narrow region, linear
+    features on *every* input (the raw states and controls beside the sensitivities) are nearly
+    collinear with the sensitivities, and the fit spreads its slope over them. Outside that
+    region the raw-input terms extrapolate as an offset the physics does not have: near its
+    goal the Dubins vehicle's learned model had it drift at 0.3 m/s while at rest (mostly from
+    the cos(psi) column, 20 standard deviations outside its data), so it passed the goal,
+    stopped facing away from it and stayed 0.13 m off. The Dubins rates are the sensitivities
+    times ``dp`` exactly, so restricting the linear part to them removes the offset. The
+    decision record of the study (``residual_trace``, ``learner_envelope``) is in the
+    documentation.
 
     Args:
         sensitivity_columns: the learner-input columns of the parameter sensitivities
-            (non-empty; negative indices count from the end).
+            (non-empty; negative indices count from the end; ``agent.residual.
+            sensitivity_columns``), or None: the MPC's own.
         n_frequencies, forgetting_factor, random_state: as :func:`online_ssgp`.
 
     Raises:
-        ValueError: no sensitivity columns (the MPC needs ``sensitivities=True``).
+        ValueError: an empty sequence of columns.
     """
-    columns = tuple(int(c) for c in sensitivity_columns)
-    if not columns:
-        raise ValueError("parametric_ssgp needs the learner-input columns of the parameter "
-                         "sensitivities: build the MPC with sensitivities=True and pass "
-                         "agent.residual.sensitivity_columns")
+    if sensitivity_columns is None:
+        columns: tuple[int, ...] | str = "sensitivities"
+    else:
+        columns = tuple(int(c) for c in sensitivity_columns)
+        if not columns:
+            raise ValueError("parametric_ssgp needs the learner-input columns of the parameter "
+                             "sensitivities, or None for the MPC's own (agent.residual."
+                             "sensitivity_columns of an MPC with Residual(sensitivities=True))")
     return online_ssgp(n_frequencies, forgetting_factor, random_state, linear_features=columns,
                        change_detector=ChangeDetector(), nominal_fallback=NominalFallback(),
                        input_saturation=INPUT_SATURATION)

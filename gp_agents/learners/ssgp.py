@@ -138,6 +138,11 @@ def linear_mask(linear_features: bool | np.ndarray | Sequence[int] | None, d_in:
     """
     if linear_features is None or isinstance(linear_features, bool | np.bool_):
         return np.ones(d_in) if linear_features else None
+    if isinstance(linear_features, str):
+        raise ValueError(f"linear_features={linear_features!r} names the MPC's parameter-"
+                         f"sensitivity columns, which the MPC fills in when the learner is "
+                         f"given to it (PseudospectralMPC with Residual(sensitivities=True)); "
+                         f"to fit the learner alone, pass the column indices")
     if isinstance(linear_features, np.ndarray) and linear_features.dtype.kind == "f":
         if linear_features.shape != (d_in,):
             raise ValueError(f"a linear-feature mask must have shape ({d_in},), got "
@@ -208,7 +213,7 @@ class SSGP(BaseGPLearner):
         max_optimization_samples: int | None = 2000,
         normalize: bool = True,
         random_state: int | None = 0,
-        linear_features: bool | Sequence[int] = False,
+        linear_features: bool | Sequence[int] | str = False,
         linear_std: float = 1.0,
         input_saturation: float | None = None,
     ) -> None:

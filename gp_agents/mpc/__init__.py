@@ -1,8 +1,12 @@
 """Pseudospectral MPC with a learned residual (the paper's Algorithm 1), one piece per module.
 
 ======================  ==================================================================
+``recipes``             :func:`make_mpc` and :data:`RECIPES`: the named recipes
 ``controller``          :class:`PseudospectralMPC`: ``from_env``, ``pretrain``, ``act``,
-                        ``observe``, ``reset``, ``diagnostics_arrays``
+                        ``observe``, ``reset``, ``health``, ``diagnostics_arrays``
+``settings``            the settings objects: :class:`Converged`, :class:`RTI`,
+                        :class:`Residual` (and ``schedule``'s, ``ocp``'s :class:`Constraints`)
+``tuning``              per-system solver tuning: :class:`RTITuning`, :func:`rti_tuning`
 ``schedule``            when to plan: :class:`RecedingHorizon`, :class:`Episodic`
 ``planner``             warm start, re-linearization, retry, fallback; :class:`Plan`'s action
 ``ocp``                 the OCP: :class:`Mesh` (held control periods), cost, state box,
@@ -19,7 +23,7 @@
 
 from gp_agents.learners.recipes import online_ssgp
 from gp_agents.mpc.controller import LEARNED_TERMS, PseudospectralMPC
-from gp_agents.mpc.diagnostics import StepRecord
+from gp_agents.mpc.diagnostics import ControllerDegradedWarning, StepRecord
 from gp_agents.mpc.gp_in_nlp import MAX_LEARNED_MODEL_SIZE, GPInNLP
 from gp_agents.mpc.gp_linearized import COLD_START_LINEARIZATIONS, LinearizedGP
 from gp_agents.mpc.gp_pattern import PatternLinearizedGP
@@ -28,29 +32,43 @@ from gp_agents.mpc.learned_term import LearnedTerm, NoLearnedTerm
 from gp_agents.mpc.ocp import Constraints, Mesh, build_ocp
 from gp_agents.mpc.planner import CAPPED_STATUSES, Plan, Planner
 from gp_agents.mpc.planning_model import PlanningModel
+from gp_agents.mpc.recipes import DEFAULT_RECIPE, RECIPES, OracleModel, make_mpc
 from gp_agents.mpc.schedule import Episodic, RecedingHorizon, planning_defaults
+from gp_agents.mpc.settings import RTI, Converged, Residual
+from gp_agents.mpc.tuning import RTITuning, register_rti_tuning, rti_tuning
 
 __all__ = [
     "CAPPED_STATUSES",
     "COLD_START_LINEARIZATIONS",
+    "DEFAULT_RECIPE",
     "LEARNED_TERMS",
     "MAX_LEARNED_MODEL_SIZE",
+    "RECIPES",
+    "RTI",
     "Constraints",
+    "ControllerDegradedWarning",
+    "Converged",
     "Episodic",
     "GPInNLP",
     "LearnedTerm",
     "LinearizedGP",
     "Mesh",
     "NoLearnedTerm",
+    "OracleModel",
     "PatternLinearizedGP",
     "Plan",
     "Planner",
     "PlanningModel",
     "PseudospectralMPC",
+    "RTITuning",
     "RecedingHorizon",
+    "Residual",
     "StepRecord",
     "ZeroOrderGP",
     "build_ocp",
+    "make_mpc",
     "online_ssgp",
     "planning_defaults",
+    "register_rti_tuning",
+    "rti_tuning",
 ]

@@ -19,57 +19,93 @@ physics plus a learned term), how the learner enters the NLP (:mod:`~gp_agents.m
 from __future__ import annotations
 
 import copy
+import dataclasses
 import time
-from collections.abc import Callable, Mapping
-from typing import Any, Literal
+import warnings
+from collections.abc import Callable
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
 
 from gp_agents.data import Transitions
 from gp_agents.mpc.active_set import ActiveSetQP
-from gp_agents.mpc.diagnostics import StepRecord, records_to_arrays
+from gp_agents.mpc.diagnostics import (
+    DEGRADED_FRACTION,
+    MIN_DEGRADED_REPLANS,
+    ControllerDegradedWarning,
+    StepRecord,
+    records_to_arrays,
+)
 from gp_agents.mpc.gp_in_nlp import GPInNLP
 from gp_agents.mpc.gp_linearized import LinearizedGP
 from gp_agents.mpc.gp_pattern import PatternLinearizedGP
 from gp_agents.mpc.gp_zero_order import ZeroOrderGP
 from gp_agents.mpc.learned_term import LearnedTerm, NoLearnedTerm
 from gp_agents.mpc.ocp import Constraints
-from gp_agents.mpc.planner import Plan, Planner
+from gp_agents.mpc.planner import CAPPED_STATUSES, Plan, Planner
 from gp_agents.mpc.planning_model import PlanningModel
-from gp_agents.mpc.rti import RTIPlanner, check_levenberg_marquardt
+from gp_agents.mpc.rti import RTIPlanner
 from gp_agents.mpc.rti_split import SplitRTIPlanner
-from gp_agents.mpc.schedule import Episodic, RecedingHorizon, planning_defaults
+from gp_agents.mpc.schedule import Episodic, RecedingHorizon
+from gp_agents.mpc.settings import RTI, Converged, Residual, scheme_settings
+from gp_agents.mpc.tuning import rti_tuning
 from gp_agents.residual import ResidualModel
 from gp_envs.model import ControlModel
-from gp_envs.systems import PlanningDefaults
-
-SCHEMES: dict[str, type[Planner]] = {"converged": Planner, "rti": RTIPlanner,
-                                     "rti-split": SplitRTIPlanner}
-"""``scheme`` names and their planners."""
 
 LEARNED_TERMS: dict[str, type[LearnedTerm]] = {"exact": GPInNLP, "linearized": LinearizedGP,
                                                "linearized-pattern": PatternLinearizedGP,
                                                "zero-order": ZeroOrderGP}
-"""``learned_dynamics`` names: the GP inside the NLP (the paper's OCP), linearized per node,
-linearized on the nominal model's Jacobian pattern (the rest adjoint-corrected in the RTI), or
-its value frozen per node (with the RTI's adjoint correction)."""
+"""``term`` names: the GP inside the NLP (the paper's OCP), linearized per node, linearized on
+the nominal model's Jacobian pattern (the rest adjoint-corrected in the RTI), or its value frozen
+per node (with the RTI's adjoint correction)."""
+
+LEARNER_METHODS = ("fit", "predict", "predict_gradient", "casadi_mean", "casadi_param_size",
+                   "casadi_param_values")
+"""What the MPC calls on a learner (:class:`~gp_agents.learners.base.BaseGPLearner` has them)."""
+
+LEGACY_SETTINGS: dict[str, str] = {
+    "mode": "horizon=RecedingHorizon(...) or Episodic(...)",
+    "n_nodes": "horizon=RecedingHorizon(n_nodes=...) (Episodic(nodes_per_period=...))",
+    "n_intervals": "horizon=RecedingHorizon(n_intervals=...)",
+    "replan_every": "horizon=RecedingHorizon(replan_every=...)",
+    "held_nodes": "horizon=RecedingHorizon(held_nodes=...)",
+    "learn_online": "residual=Residual(learn_online=...)",
+    "uncertain_indices": "residual=Residual(uncertain=...)",
+    "input_indices": "residual=Residual(inputs=...)",
+    "sensitivities": "residual=Residual(sensitivities=...)",
+    "learned_dynamics": "term=...",
+    "uncertainty_radius": "constraints=Constraints(uncertainty_radius=...)",
+    "state_margin": "constraints=Constraints(state_margin=...)",
+    "state_penalty": "constraints=Constraints(state_penalty=...)",
+    "obstacle_margin": "constraints=Constraints(obstacle_margin=...)",
+    "solver": "scheme=Converged(solver=...) (RTI(fallback=Converged(...)))",
+    "solver_options": "scheme=Converged(solver_options=...)",
+    "max_iterations": "scheme=Converged(max_iterations=...)",
+    "jit": "scheme=Converged(jit=...)",
+    "warm_start_duals": "scheme=Converged(warm_start_duals=...)",
+    "qp_solver": "scheme=RTI(qp_solver=...)",
+    "levenberg_marquardt": "scheme=RTI(levenberg_marquardt=...)",
+}
+"""The constructor's former flat keywords (still accepted, with a ``DeprecationWarning``) and
+where each now lives."""
 
 
-def default_learned_dynamics(scheme: str, defaults: PlanningDefaults | None) -> str:
-    """The ``learned_dynamics`` name an MPC of ``scheme`` uses when given none: ``"exact"`` (the
-    paper's OCP, the GP inside the NLP) for ``"converged"``; for the real-time iterations, the
-    system's registered ``rti_learned_dynamics`` (``"linearized"`` for an unregistered system).
+def default_learned_dynamics(scheme: str, model: ControlModel | str | None = None) -> str:
+    """The ``term`` name an MPC of ``scheme`` uses when given none: ``"exact"`` (the paper's
+    OCP, the GP inside the NLP) for ``"converged"``; for the real-time iterations, the
+    system's :func:`~gp_agents.mpc.tuning.rti_tuning` (``model``: a model or a system name;
+    ``"linearized"`` without one).
 
     Raises:
         ValueError: the registered name is not one of :data:`LEARNED_TERMS`.
     """
     if scheme == "converged":
         return "exact"
-    name = defaults.rti_learned_dynamics if defaults is not None else "linearized"
+    name = rti_tuning(model).learned_term if model is not None else "linearized"
     if name not in LEARNED_TERMS:
-        raise ValueError(f"the system's PlanningDefaults.rti_learned_dynamics {name!r} is not "
-                         f"one of {list(LEARNED_TERMS)}")
+        raise ValueError(f"the system's RTITuning.learned_term {name!r} is not one of "
+                         f"{list(LEARNED_TERMS)}")
     return name
 
 
@@ -87,130 +123,88 @@ class EnvNominalModel:
 class PseudospectralMPC:
     """Gauss pseudospectral MPC on nominal physics plus an optional learned residual.
 
+    The named recipes (:func:`gp_agents.make_mpc`) build it with settings that work together;
+    this constructor is for changing one piece. Each group of settings is one object
+    (:mod:`gp_agents.mpc.settings`), and a setting that would change nothing in the chosen
+    combination raises instead of being ignored.
+
     Args:
         model: the model the controller plans with: an env's ``nominal_model`` (or, for an
-            upper-bound baseline, a true model the benchmark hands in).
-        learner: a residual learner (``IncrementalSSGP``, ``SSGP``, ``ExactGP``) or None (pure
-            physics). It must be fitted before the first ``act`` (:meth:`pretrain`).
-        mode: ``"receding"`` (Algorithm 1) or ``"episodic"`` (plan once over the task's whole
-            duration at the first ``act``, execute open loop; no learning).
-        horizon: receding horizon in seconds (default: the system's registered
-            :class:`gp_envs.systems.PlanningDefaults`, as for ``n_nodes``, ``n_intervals``,
-            the episodic nodes per period and ``qp_solver``; required for an unregistered
-            system).
-        n_nodes, n_intervals: LG nodes per interval and intervals after the held periods.
-        replan_every: ``p``, periods executed from each plan (all held in the plan).
-        held_nodes: LG nodes of each held period (episodic: of every period).
-        learn_online: feed observed transitions to ``learner.update`` (if it has one).
-        uncertain_indices: state components with a learned residual (default: the model's
-            accelerations). input_indices: components fed to the learner (None: all;
-            ``"model"``: those the parametric nominal model's uncertain rates depend on).
-        sensitivities: the learner also sees the nominal model's parameter sensitivities
-            (:class:`~gp_agents.residual.ResidualModel`): with a learner with linear features
-            the residual gets an explicit parametric part.
-        uncertainty_radius: ``kappa`` >= 0 of the obstacle constraint (:mod:`~gp_agents.mpc.
-            ocp`); 0 reproduces the paper's run.
-        learned_dynamics: how the learner enters the NLP: ``"exact"`` (:class:`GPInNLP`),
-            ``"linearized"`` (:class:`LinearizedGP`), ``"linearized-pattern"``
-            (:class:`~gp_agents.mpc.gp_pattern.PatternLinearizedGP`: the linearization's
-            entries on the nominal Jacobian pattern only, the nominal QP structure),
-            ``"zero-order"`` (:class:`ZeroOrderGP`: the value frozen per node, the nominal QP
-            structure; both meant for ``scheme="rti"``, whose steps correct their gradient
-            with the multipliers), or a configured term
-            instance (e.g.
-            ``LinearizedGP(max_linearizations=3)``, ``GPInNLP(hessian="nominal")``; copied).
-            None: :func:`default_learned_dynamics` (``"exact"`` when converged; the system's
-            registered ``rti_learned_dynamics`` for the RTI schemes).
-        solver, solver_options, jit: the NLP solver (:class:`~gp_agents.mpc.planner.Planner`).
-        max_iterations: iteration cap of one solve; the only cap (no wall-clock limit).
-        state_margin, state_penalty, obstacle_margin: :class:`~gp_agents.mpc.ocp.Constraints`.
-        scheme: ``"converged"`` (every plan solved to convergence), ``"rti"`` (a converged
-            solve at a cold start, then one Gauss-Newton SQP step per replan:
-            :class:`~gp_agents.mpc.rti.RTIPlanner`) or ``"rti-split"`` (the same step split
-            into a preparation, done in ``act`` after the action is known together with the
-            learner update, and a feedback phase, the QP with the measured state:
-            :class:`~gp_agents.mpc.rti_split.SplitRTIPlanner`; each step's record has its
-            ``preparation_time``, the rest of ``act_time`` is the latency).
-        qp_solver: the RTI step's QP solver: a CasADi conic plugin name,
-            ``"active-set:<plugin>"`` or an :class:`~gp_agents.mpc.active_set.ActiveSetQP`
-            (:class:`~gp_agents.mpc.rti.RTIPlanner`; default per system, chosen by
-            measurement: :func:`~gp_agents.mpc.schedule.planning_defaults`).
-        levenberg_marquardt: the RTI step's ``mu`` >= 0 on the QP Hessian's diagonal
-            (:class:`~gp_agents.mpc.rti.RTIPlanner`; default per system, 0 where none is
-            registered: :func:`~gp_agents.mpc.schedule.planning_defaults`).
-        warm_start_duals: a warm IPOPT solve also starts from the previous solve's multipliers
-            with IPOPT's warm-start options (:class:`~gp_agents.mpc.planner.Planner`). None: off
-            for ``"converged"``, on for the RTI's fallback solves. Measured (``rti`` preset,
-            ``benchmarks/results/rti/report.md``): 0.55-0.75x the converged step on the
-            quadrotor and Dubins vehicle at the same outcomes, but a 2.5% higher cost for the
-            oracle cart pole (13.32 vs 12.99, intervals disjoint: it stays in the previous
-            plan's basin of the swing-up), so the converged default stays off.
+            upper-bound baseline, the true model the benchmark hands in).
+        learner: a residual learner (:class:`~gp_agents.learners.IncrementalSSGP`,
+            :class:`~gp_agents.learners.SSGP`, :class:`~gp_agents.learners.ExactGP`) or None
+            (pure physics). It must be fitted before the first ``act`` (:meth:`pretrain`).
+        horizon: when and over what to plan: a
+            :class:`~gp_agents.mpc.schedule.RecedingHorizon` (Algorithm 1; a number is its
+            length in seconds) or an :class:`~gp_agents.mpc.schedule.Episodic` (plan once over
+            the task, run open loop, no learning). None: the system's receding horizon
+            (:class:`gp_envs.PlanningDefaults`).
+        scheme: :class:`~gp_agents.mpc.settings.Converged` (every plan solved to convergence)
+            or :class:`~gp_agents.mpc.settings.RTI` (one SQP step per period; ``split=True``
+            separates preparation and feedback); or ``"converged"``, ``"rti"``,
+            ``"rti-split"``.
+        term: how the learner enters the NLP (only with a learner): ``"exact"``
+            (:class:`GPInNLP`, the paper's OCP), ``"linearized"`` (:class:`LinearizedGP`),
+            ``"linearized-pattern"`` (:class:`~gp_agents.mpc.gp_pattern.PatternLinearizedGP`),
+            ``"zero-order"`` (:class:`ZeroOrderGP`), or a configured
+            :class:`~gp_agents.mpc.learned_term.LearnedTerm` (copied). None: ``"exact"`` when
+            converged, the system's tuned term for the RTI
+            (:func:`~gp_agents.mpc.tuning.rti_tuning`).
+        residual: :class:`~gp_agents.mpc.settings.Residual` (only with a learner): which
+            states get a residual, what the learner sees, whether it learns online.
+        constraints: :class:`~gp_agents.mpc.ocp.Constraints` (state box margin and penalty,
+            obstacle margin, uncertainty radius ``kappa``; 0 reproduces the paper's run).
+        **legacy: the former flat keywords (:data:`LEGACY_SETTINGS`), mapped onto these
+            objects with a ``DeprecationWarning``.
+
+    Raises:
+        TypeError: a learner without what the MPC calls (:data:`LEARNER_METHODS`); a legacy
+            keyword together with the object it belongs to; an unknown keyword.
+        ValueError: a setting that does not apply to the combination (an RTI or online learning
+            with an episodic plan, a learned term or residual settings without a learner, an
+            obstacle margin or uncertainty radius on a system without obstacles, ...).
     """
 
     def __init__(self, model: ControlModel, learner: Any | None = None, *,
-                 mode: Literal["receding", "episodic"] = "receding",
-                 horizon: float | None = None, n_nodes: int | None = None,
-                 n_intervals: int | None = None, replan_every: int = 1, held_nodes: int = 3,
-                 learn_online: bool = True, uncertain_indices: tuple[int, ...] | None = None,
-                 input_indices: tuple[int, ...] | Literal["model"] | None = None,
-                 sensitivities: bool = False, uncertainty_radius: float = 0.0,
-                 learned_dynamics: str | LearnedTerm | None = None, solver: str = "ipopt",
-                 solver_options: Mapping[str, Any] | None = None, max_iterations: int = 500,
-                 state_margin: float = 0.05, state_penalty: float | None = 1e4,
-                 obstacle_margin: float = 0.1, jit: bool = False,
-                 scheme: Literal["converged", "rti", "rti-split"] = "converged",
-                 qp_solver: str | ActiveSetQP | None = None,
-                 levenberg_marquardt: float | None = None,
-                 warm_start_duals: bool | None = None) -> None:
+                 horizon: float | RecedingHorizon | Episodic | None = None,
+                 scheme: str | Converged | RTI = "converged",
+                 term: str | LearnedTerm | None = None, residual: Residual | None = None,
+                 constraints: Constraints | None = None, **legacy: Any) -> None:
         if not isinstance(model, ControlModel):
             raise TypeError(f"model must be a gp_envs ControlModel, got {type(model).__name__}")
-        defaults = planning_defaults(model)
-        if mode == "receding":
-            if horizon is None:
-                if defaults is None:
-                    raise ValueError(f"system {model.name!r} is not registered "
-                                     f"(gp_envs.register_system): pass horizon=")
-                horizon = defaults.horizon
-            if not (np.isfinite(horizon) and horizon > 0):
-                raise ValueError(f"horizon must be a positive number of seconds, got {horizon}")
-            self.schedule: RecedingHorizon | Episodic = RecedingHorizon(
-                horizon, (defaults.n_nodes if defaults else 12) if n_nodes is None else n_nodes,
-                (defaults.n_intervals if defaults else 1) if n_intervals is None
-                else n_intervals, replan_every, held_nodes)
-        elif mode == "episodic":
-            self.schedule = Episodic(model.task.duration if horizon is None else horizon,
-                                     (defaults.nodes_per_period if defaults else held_nodes)
-                                     if n_nodes is None else n_nodes)
-        else:
-            raise ValueError(f"mode must be 'receding' or 'episodic', got {mode!r}")
-        if scheme not in SCHEMES:
-            raise ValueError(f"scheme must be one of {list(SCHEMES)}, got {scheme!r}")
-        self.scheme = scheme
-        self.qp_solver = qp_solver or (defaults.qp_solver if defaults else "osqp")
-        if levenberg_marquardt is None:
-            levenberg_marquardt = defaults.levenberg_marquardt if defaults else 0.0
-        self.levenberg_marquardt = check_levenberg_marquardt(levenberg_marquardt)
-        self.warm_start_duals = None if warm_start_duals is None else bool(warm_start_duals)
-        if learned_dynamics is None:
-            learned_dynamics = default_learned_dynamics(scheme, defaults)
-        if isinstance(learned_dynamics, str):
-            if learned_dynamics not in LEARNED_TERMS:
-                raise ValueError(f"learned_dynamics must be one of {list(LEARNED_TERMS)} or a "
-                                 f"LearnedTerm, got {learned_dynamics!r}")
-            learned_dynamics = LEARNED_TERMS[learned_dynamics]()
-        elif not isinstance(learned_dynamics, LearnedTerm):
-            raise TypeError(f"learned_dynamics must be a name or a LearnedTerm, got "
-                            f"{type(learned_dynamics).__name__}")
+        if legacy:
+            horizon, scheme, term, residual, constraints = _from_legacy(
+                legacy, horizon, scheme, term, residual, constraints)
+        schedule = _schedule(horizon).resolve(model)
+        scheme = scheme_settings(scheme)
+        residual = Residual() if residual is None else residual
+        constraints = Constraints() if constraints is None else constraints
+        for value, kind, name in ((residual, Residual, "residual"),
+                                  (constraints, Constraints, "constraints")):
+            if not isinstance(value, kind):
+                raise TypeError(f"{name} must be a {kind.__name__}, got {type(value).__name__}")
+        _check_learner(learner)
+        _check_combination(model, learner, schedule, scheme, term, residual, constraints)
+        if isinstance(scheme, RTI):
+            tuning = rti_tuning(model)
+            scheme = dataclasses.replace(
+                scheme, qp_solver=scheme.qp_solver or tuning.qp_solver,
+                levenberg_marquardt=(tuning.levenberg_marquardt if scheme.levenberg_marquardt
+                                     is None else scheme.levenberg_marquardt))
+        self.schedule: RecedingHorizon | Episodic = schedule
+        self.scheme_settings: Converged | RTI = scheme
+        self.residual_settings = residual
         self.mesh = self.schedule.mesh(model.dt)  # validates horizon against the held periods
-        self.constraints = Constraints(state_margin, state_penalty, obstacle_margin,
-                                       float(uncertainty_radius))
-        self.model, self.learner, self.mode = model, learner, mode
-        self.learned_dynamics = learned_dynamics
-        self.learn_online = bool(learn_online)
-        self.solver, self.solver_options = solver, dict(solver_options or {})
-        self.max_iterations, self.jit = int(max_iterations), bool(jit)
-        self.residual = ResidualModel(model, uncertain_indices, input_indices, sensitivities)
-        self.term: LearnedTerm = (copy.deepcopy(learned_dynamics) if learner is not None
+        self.constraints = constraints
+        self.model, self.learner = model, learner
+        self.learned_dynamics = _term(term, scheme, model)
+        self.learn_online = (schedule.learns and learner is not None
+                             and hasattr(learner, "update")
+                             if residual.learn_online is None else residual.learn_online)
+        self.residual = ResidualModel(model, residual.uncertain, residual.inputs,
+                                      residual.sensitivities)
+        _bind_sensitivity_columns(learner, self.residual)
+        self.term: LearnedTerm = (copy.deepcopy(self.learned_dynamics) if learner is not None
                                   else NoLearnedTerm())
         self._attach()
         self.planner: Planner | None = None
@@ -218,6 +212,42 @@ class PseudospectralMPC:
         self._buffer: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
         self.n_builds = 0
         self.reset()
+
+    # the former flat settings, read from the settings objects
+    @property
+    def mode(self) -> str:
+        """``"receding"`` or ``"episodic"``."""
+        return self.schedule.name
+
+    @property
+    def scheme(self) -> str:
+        """``"converged"``, ``"rti"`` or ``"rti-split"``."""
+        return self.scheme_settings.name
+
+    @property
+    def qp_solver(self) -> str | ActiveSetQP | None:
+        """The RTI's QP solver (None for a converged scheme)."""
+        s = self.scheme_settings
+        return s.qp_solver if isinstance(s, RTI) else None
+
+    @property
+    def levenberg_marquardt(self) -> float | None:
+        """The RTI's Levenberg-Marquardt ``mu`` (None for a converged scheme)."""
+        s = self.scheme_settings
+        return s.levenberg_marquardt if isinstance(s, RTI) else None
+
+    @property
+    def solver_settings(self) -> Converged:
+        """The converged solves' settings (the RTI's fallback for an RTI scheme)."""
+        s = self.scheme_settings
+        return s.fallback if isinstance(s, RTI) else s
+
+    def settings(self) -> dict[str, Any]:
+        """The settings this MPC was built with, resolved (scikit-learn's ``get_params``):
+        ``horizon``, ``scheme``, ``term``, ``residual``, ``constraints`` as their objects."""
+        return {"horizon": self.schedule, "scheme": self.scheme_settings,
+                "term": self.learned_dynamics if self.learner is not None else None,
+                "residual": self.residual_settings, "constraints": self.constraints}
 
     def __getstate__(self) -> dict[str, Any]:
         """Pickle everything but the compiled NLP, which is rebuilt at the next ``act`` (the
@@ -263,15 +293,26 @@ class PseudospectralMPC:
         agent._model_source = source
         return agent
 
-    def pretrain(self, data: Transitions) -> PseudospectralMPC:
-        """Fit the learner on initial transitions (Algorithm 1, line 1)."""
+    def pretrain(self, data: Transitions | tuple[np.ndarray, np.ndarray, np.ndarray]
+                 ) -> PseudospectralMPC:
+        """Fit the learner on initial transitions (Algorithm 1, line 1); returns ``self``.
+
+        Args:
+            data: :class:`~gp_agents.data.Transitions` (from
+                :func:`~gp_agents.data.collect_initial_data`), or a tuple ``(X, U, X_next)`` of
+                arrays (N, n), (N, m), (N, n) in the model's units.
+
+        Raises:
+            ValueError: no learner; no transitions; shapes that do not match the model;
+                non-finite values.
+            TypeError: ``data`` is neither.
+        """
         if self.learner is None:
             raise ValueError("this agent has no learner to pretrain")
-        if len(data) < 1:
-            raise ValueError("pretrain needs at least one transition, got none")
+        X, U, X_next = _transitions(data, self.model)
         if self._model_source is not None:  # learn against the env's current nominal model
             self._set_model(self._model_source(), learner_trained=False)
-        self.learner.fit(*self.residual.targets(data.X, data.U, data.X_next))
+        self.learner.fit(*self.residual.targets(X, U, X_next))
         self.planner = None  # the learner's parameter layout may have changed
         return self
 
@@ -281,6 +322,9 @@ class PseudospectralMPC:
         self._step = 0
         self._buffer.clear()
         self.diagnostics: list[StepRecord] = []
+        self._health = dict.fromkeys(("replans", "rti_steps", "rti_rejected", "failed",
+                                      "capped", "fallbacks", "degraded_replans"), 0)
+        self._warned = False
 
     def _attach(self) -> None:
         unc = self.residual.uncertain_indices
@@ -317,16 +361,16 @@ class PseudospectralMPC:
         size = self.term.param_values().size  # raises RuntimeError for an unfitted learner
         planning = self.planner.planning if self.planner is not None else None
         if planning is None or size != planning.n_params - planning.n_nominal:
-            planner = SCHEMES[self.scheme]
-            extra: dict[str, Any] = ({"qp_solver": self.qp_solver,
-                                      "levenberg_marquardt": self.levenberg_marquardt}
-                                     if issubclass(planner, RTIPlanner) else {})
-            if self.warm_start_duals is not None:
-                extra["warm_start_duals"] = self.warm_start_duals
-            self.planner = planner(
-                PlanningModel(self.model, self.residual, self.term), self.mesh,
-                self.constraints, solver=self.solver, solver_options=self.solver_options,
-                max_iterations=self.max_iterations, jit=self.jit, **extra)
+            settings = self.scheme_settings
+            if isinstance(settings, RTI):
+                planner: type[Planner] = SplitRTIPlanner if settings.split else RTIPlanner
+                extra: dict[str, Any] = {"qp_solver": settings.qp_solver,
+                                         "levenberg_marquardt": settings.levenberg_marquardt,
+                                         **settings.fallback.planner_settings()}
+            else:
+                planner, extra = Planner, settings.planner_settings()
+            self.planner = planner(PlanningModel(self.model, self.residual, self.term),
+                                   self.mesh, self.constraints, **extra)
             self.n_builds += 1
         return self.planner
 
@@ -369,8 +413,44 @@ class PseudospectralMPC:
             step=self._step, learner_samples=self._learner_samples(), action=u.copy(),
             act_time=time.perf_counter() - start, plan_t=plan.solution.t - offset,
             plan_x=plan.solution.x, **record))
+        if record["replanned"]:
+            self._count(record)
         self._step += 1
         return u
+
+    def health(self) -> dict[str, int | bool]:
+        """How this episode's replans went (since the last :meth:`reset`): ``replans``,
+        ``rti_steps`` (RTI steps taken), ``rti_rejected`` (RTI steps replaced by a converged
+        solve), ``failed`` (replans whose solve failed), ``capped`` (ending at the iteration
+        cap), ``fallbacks`` (an older or constant plan kept), ``degraded_replans`` (replans with
+        any of the last four) and ``degraded`` (more than :data:`~gp_agents.mpc.diagnostics.
+        DEGRADED_FRACTION` of the replans, and at least :data:`~gp_agents.mpc.diagnostics.
+        MIN_DEGRADED_REPLANS`; a :class:`~gp_agents.mpc.diagnostics.ControllerDegradedWarning`
+        is issued once per episode when that first holds)."""
+        counts: dict[str, int | bool] = dict(self._health)
+        counts["degraded"] = _degraded(self._health)
+        return counts
+
+    def _count(self, record: dict[str, Any]) -> None:
+        status = str(record["status"])
+        rejected = status.startswith("RTI rejected")
+        failed, fallback = not record["success"], bool(record["fallback"])
+        capped = status.rsplit(", ", 1)[-1] in CAPPED_STATUSES
+        h = self._health
+        h["replans"] += 1
+        h["rti_steps"] += int(status.startswith("RTI"))
+        h["rti_rejected"] += int(rejected)
+        h["failed"] += int(failed)
+        h["capped"] += int(capped)
+        h["fallbacks"] += int(fallback)
+        h["degraded_replans"] += int(rejected or failed or capped or fallback)
+        if not self._warned and _degraded(h):
+            self._warned = True
+            warnings.warn(ControllerDegradedWarning(
+                f"PseudospectralMPC ({self.scheme}): {h['degraded_replans']} of {h['replans']} "
+                f"replans so far this episode took a fallback path (RTI steps rejected "
+                f"{h['rti_rejected']}, failed {h['failed']}, capped {h['capped']}, older plan "
+                f"kept {h['fallbacks']}); agent.health() has the counts"), stacklevel=3)
 
     # ------------------------------------------------------------------ learning
     def observe(self, obs: np.ndarray, action: np.ndarray, next_obs: np.ndarray) -> None:
@@ -425,6 +505,42 @@ class PseudospectralMPC:
         return records_to_arrays(self.diagnostics)
 
 
+def _transitions(data: Any, model: ControlModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``data``'s ``(X, U, X_next)`` checked against ``model`` (see :meth:`PseudospectralMPC.
+    pretrain`)."""
+    if isinstance(data, Transitions):
+        arrays = (data.X, data.U, data.X_next)
+    elif isinstance(data, tuple | list) and len(data) == 3:
+        arrays = tuple(data)
+    else:
+        raise TypeError(f"pretrain takes Transitions (gp_agents.collect_initial_data(env, n, "
+                        f"seed=...)) or a tuple (X, U, X_next), got {type(data).__name__}")
+    n, m = model.n_states, model.n_controls
+    out = []
+    for name, value, width in zip(("X", "U", "X_next"), arrays, (n, m, n), strict=True):
+        try:
+            arr = np.asarray(value, dtype=float)
+        except (TypeError, ValueError):
+            raise TypeError(f"pretrain: {name} must be an array of numbers") from None
+        if arr.ndim != 2 or arr.shape[1] != width:
+            raise ValueError(f"pretrain: {name} must have shape (N, {width}) for the "
+                             f"{model.name} model, got {arr.shape}")
+        if not np.all(np.isfinite(arr)):
+            raise ValueError(f"pretrain: {name} has non-finite values")
+        out.append(arr)
+    if out[0].shape[0] < 1:
+        raise ValueError("pretrain needs at least one transition, got none")
+    if not out[0].shape[0] == out[1].shape[0] == out[2].shape[0]:
+        raise ValueError(f"pretrain: X, U, X_next must have as many rows, got "
+                         f"{[a.shape[0] for a in out]}")
+    return out[0], out[1], out[2]
+
+
+def _degraded(h: dict[str, int]) -> bool:
+    bad = h["degraded_replans"]
+    return bad >= MIN_DEGRADED_REPLANS and bad > DEGRADED_FRACTION * h["replans"]
+
+
 def _checked(value: Any, shape: tuple[int, ...], name: str) -> np.ndarray:
     """``value`` as a float array of ``shape``, finite, else a ``ValueError``."""
     arr = np.asarray(value, dtype=float)
@@ -433,3 +549,180 @@ def _checked(value: Any, shape: tuple[int, ...], name: str) -> np.ndarray:
     if not np.all(np.isfinite(arr)):
         raise ValueError(f"{name} must be finite, got {arr}")
     return arr
+
+
+# ---------------------------------------------------------------------- settings resolution
+def _schedule(horizon: float | RecedingHorizon | Episodic | None) -> RecedingHorizon | Episodic:
+    if horizon is None:
+        return RecedingHorizon()
+    if isinstance(horizon, RecedingHorizon | Episodic):
+        return horizon
+    if isinstance(horizon, bool) or not isinstance(horizon, int | float | np.floating):
+        raise TypeError(f"horizon must be seconds, a RecedingHorizon or an Episodic, got "
+                        f"{type(horizon).__name__}")
+    return RecedingHorizon(float(horizon))
+
+
+def _take(legacy: dict[str, Any], keys: tuple[str, ...], owner: str, given: bool
+          ) -> dict[str, Any]:
+    """Pop ``keys`` from ``legacy``; a TypeError if the object ``owner`` was given too."""
+    found = {k: legacy.pop(k) for k in keys if k in legacy}
+    if found and given:
+        raise TypeError(f"PseudospectralMPC: {sorted(found)} and {owner}= both given; set them "
+                        f"on the {owner} object ({'; '.join(LEGACY_SETTINGS[k] for k in found)})")
+    return found
+
+
+def _from_legacy(legacy: dict[str, Any], horizon: Any, scheme: Any, term: Any, residual: Any,
+                 constraints: Any) -> tuple[Any, Any, Any, Any, Any]:
+    """Map the former flat keywords onto the settings objects (:data:`LEGACY_SETTINGS`)."""
+    legacy = dict(legacy)
+    unknown = sorted(set(legacy) - set(LEGACY_SETTINGS))
+    if unknown:
+        raise TypeError(f"PseudospectralMPC got unexpected keyword(s) {unknown}; settings are "
+                        f"horizon=, scheme=, term=, residual=, constraints= "
+                        f"(gp_agents.mpc.settings)")
+    warnings.warn("PseudospectralMPC: the flat keyword(s) " + ", ".join(sorted(legacy))
+                  + " are deprecated; use " + "; ".join(LEGACY_SETTINGS[k] for k in legacy),
+                  DeprecationWarning, stacklevel=4)
+    is_object = isinstance(horizon, RecedingHorizon | Episodic)
+    h = _take(legacy, ("mode", "n_nodes", "n_intervals", "replan_every", "held_nodes"),
+              "horizon", is_object)
+    if h:
+        mode = h.pop("mode", "receding")
+        seconds = None if horizon is None else float(horizon)
+        if mode == "receding":
+            horizon = RecedingHorizon(seconds, h.get("n_nodes"), h.get("n_intervals"),
+                                      h.get("replan_every", 1), h.get("held_nodes", 3))
+        elif mode == "episodic":
+            wrong = sorted(set(h) - {"n_nodes"})
+            if wrong:
+                raise ValueError(f"{wrong} do not apply to an episodic plan (mode='episodic')")
+            horizon = Episodic(seconds, h.get("n_nodes"))
+        else:
+            raise ValueError(f"mode must be 'receding' or 'episodic', got {mode!r}")
+    solver_keys = ("solver", "solver_options", "max_iterations", "jit", "warm_start_duals")
+    s = _take(legacy, (*solver_keys, "qp_solver", "levenberg_marquardt"), "scheme",
+              isinstance(scheme, Converged | RTI))
+    if s:
+        chosen = scheme_settings(scheme)
+        converged = {k: s[k] for k in solver_keys if k in s and s[k] is not None}
+        if isinstance(chosen, Converged):
+            wrong = sorted(set(s) & {"qp_solver", "levenberg_marquardt"})
+            if wrong:
+                raise ValueError(f"{wrong} configure the real-time iteration's QP; they do not "
+                                 f"apply to scheme='converged'")
+            scheme = Converged(**converged)
+        else:
+            converged.setdefault("warm_start_duals", converged.get("solver", "ipopt") == "ipopt")
+            scheme = RTI(split=chosen.split, qp_solver=s.get("qp_solver"),
+                         levenberg_marquardt=s.get("levenberg_marquardt"),
+                         fallback=Converged(**converged))
+    t = _take(legacy, ("learned_dynamics",), "term", term is not None)
+    if t:
+        term = t["learned_dynamics"]
+    r = _take(legacy, ("learn_online", "uncertain_indices", "input_indices", "sensitivities"),
+              "residual", residual is not None)
+    if r:
+        residual = Residual(r.get("uncertain_indices"), r.get("input_indices"),
+                            bool(r.get("sensitivities", False)), r.get("learn_online"))
+    c = _take(legacy, ("uncertainty_radius", "state_margin", "state_penalty", "obstacle_margin"),
+              "constraints", constraints is not None)
+    if c:
+        constraints = Constraints(**{k: (float(v) if k == "uncertainty_radius" else v)
+                                     for k, v in c.items()})
+    return horizon, scheme, term, residual, constraints
+
+
+def _check_learner(learner: Any) -> None:
+    """A ``TypeError`` naming what a learner lacks (:data:`LEARNER_METHODS`)."""
+    if learner is None:
+        return
+    if isinstance(learner, type):
+        raise TypeError(f"learner must be a learner instance, got the class {learner.__name__}; "
+                        f"e.g. learner={learner.__name__}(...) or gp_agents.online_ssgp()")
+    missing = [m for m in LEARNER_METHODS if not callable(getattr(learner, m, None))]
+    if missing:
+        raise TypeError(f"learner {type(learner).__name__} lacks {missing}, which the MPC calls: "
+                        f"give a residual learner (gp_agents.online_ssgp(), "
+                        f"gp_agents.parametric_ssgp(), SSGP, IncrementalSSGP, ExactGP); "
+                        f"training data go to agent.pretrain(data), not to learner=")
+
+
+def _check_combination(model: ControlModel, learner: Any, schedule: RecedingHorizon | Episodic,
+                       scheme: Converged | RTI, term: Any, residual: Residual,
+                       constraints: Constraints) -> None:
+    """A ``ValueError`` for every setting that would change nothing in this combination."""
+    if isinstance(schedule, Episodic) and isinstance(scheme, RTI):
+        raise ValueError("the real-time iteration refines a plan every period; an episodic plan "
+                         "is solved once: use scheme='converged' with Episodic")
+    if learner is None:
+        if term is not None:
+            raise ValueError(f"term={term!r} configures how a learner enters the NLP; this MPC "
+                             f"has no learner")
+        if residual != Residual():
+            raise ValueError(f"residual={residual!r} configures the learned residual; this MPC "
+                             f"has no learner")
+    elif residual.learn_online:
+        if not schedule.learns:
+            raise ValueError("an episodic plan is run open loop and learns nothing: "
+                             "residual=Residual(learn_online=True) does not apply")
+        if not callable(getattr(learner, "update", None)):
+            raise ValueError(f"learner {type(learner).__name__} has no update(): it cannot "
+                             f"learn online (Residual(learn_online=True))")
+    default = Constraints()
+    if not model.task.obstacles:
+        if constraints.obstacle_margin != default.obstacle_margin:
+            raise ValueError(f"system {model.name!r} has no obstacles: "
+                             f"Constraints(obstacle_margin=...) does not apply")
+        if constraints.uncertainty_radius > 0:
+            raise ValueError(f"system {model.name!r} has no obstacles: "
+                             f"Constraints(uncertainty_radius=...) does not apply")
+    if constraints.uncertainty_radius > 0:
+        unc = residual.uncertain if residual.uncertain is not None else model.dynamic_indices
+        if learner is None or 0 not in unc or 1 not in unc:
+            raise ValueError("Constraints(uncertainty_radius=...) widens the obstacle by the "
+                             "learner's predictive spread of the position rates: it needs a "
+                             "learner with residuals on states 0 and 1")
+
+
+def _term(term: str | LearnedTerm | None, scheme: Converged | RTI,
+          model: ControlModel) -> LearnedTerm:
+    if term is None:
+        term = default_learned_dynamics(scheme.name, model)
+    if isinstance(term, str):
+        if term not in LEARNED_TERMS:
+            raise ValueError(f"term must be one of {list(LEARNED_TERMS)} or a LearnedTerm, "
+                             f"got {term!r}")
+        return LEARNED_TERMS[term]()
+    if not isinstance(term, LearnedTerm):
+        raise TypeError(f"term must be a name or a LearnedTerm, got {type(term).__name__}")
+    return term
+
+
+def _bind_sensitivity_columns(learner: Any, residual: ResidualModel) -> None:
+    """Give a learner whose linear features are on ``"sensitivities"``
+    (:func:`gp_agents.parametric_ssgp` without columns) this MPC's sensitivity columns, and check
+    explicit linear-feature columns against the learner's input width."""
+    features = getattr(learner, "linear_features", None)
+    if isinstance(features, str):
+        if features != "sensitivities":
+            raise ValueError(f"learner.linear_features {features!r}: only 'sensitivities' "
+                             f"names columns")
+        if not residual.sensitivities:
+            raise TypeError("this learner's linear features are on the parameter sensitivities "
+                            "(parametric_ssgp()): build the MPC with "
+                            "residual=Residual(sensitivities=True), as make_mpc(env, 'robust') "
+                            "does")
+        learner.linear_features = residual.sensitivity_columns
+        return
+    if features is None or isinstance(features, bool | np.bool_ | np.ndarray):
+        return
+    width = len(residual.input_names)
+    bad = [int(c) for c in features if not -width <= int(c) < width]
+    if bad:
+        hint = ("" if residual.sensitivities else "; columns of parameter sensitivities need "
+                "residual=Residual(sensitivities=True)")
+        raise TypeError(f"learner.linear_features names input column(s) {bad}, but this MPC's "
+                        f"learner has {width} inputs ({', '.join(residual.input_names)}){hint}; "
+                        f"parametric_ssgp() without columns takes the MPC's own")

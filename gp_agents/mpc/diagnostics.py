@@ -6,7 +6,23 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-__all__ = ["StepRecord", "records_to_arrays"]
+__all__ = ["DEGRADED_FRACTION", "MIN_DEGRADED_REPLANS", "ControllerDegradedWarning", "StepRecord",
+           "records_to_arrays"]
+
+
+class ControllerDegradedWarning(UserWarning):
+    """An MPC fell back often in one episode (RTI steps rejected, solves failed or capped, old
+    plans kept): its actions came from a weaker path than its scheme promises. Filter it with
+    ``warnings.filterwarnings("ignore", category=ControllerDegradedWarning)``; the counts are
+    :meth:`gp_agents.PseudospectralMPC.health`."""
+
+
+DEGRADED_FRACTION = 0.1
+"""An episode is *degraded* once more than this fraction of its replans (and at least
+:data:`MIN_DEGRADED_REPLANS`) were rejected RTI steps, failed or capped solves or kept an older
+plan (the real-time iteration's target: at most 10% of its steps rejected)."""
+MIN_DEGRADED_REPLANS = 3
+"""Fewest degraded replans that make an episode degraded (one cold-start hiccup is not)."""
 
 
 @dataclass

@@ -6,6 +6,10 @@ Both make every period they execute from a plan a held interval of its mesh
 
 from __future__ import annotations
 
+from dataclasses import dataclass, replace
+
+import numpy as np
+
 from gp_agents.mpc.ocp import Mesh
 from gp_agents.mpc.planner import Plan
 from gp_envs.model import ControlModel
@@ -15,34 +19,15 @@ __all__ = ["Episodic", "RecedingHorizon", "planning_defaults"]
 
 
 def planning_defaults(model: ControlModel) -> PlanningDefaults | None:
-    """The registered defaults of ``model``'s system (:class:`gp_envs.systems.PlanningDefaults`:
-    horizon, LG nodes and intervals, nodes per episodic period, the RTI step's QP solver and
-    Levenberg-Marquardt term), or None for a model of an unregistered system (then the horizon
-    must be given).
-
-    The QP solver defaults were chosen by measurement on tuning seeds 100-102
-    (``python -m benchmarks.rti_qp_solvers``, ``benchmarks/results/rti_qp_solvers.md``): the
-    active-set solve from the shifted plan's active set
-    (:class:`~gp_agents.mpc.active_set.ActiveSetQP`) halves the median RTI step or better on
-    every system at the same closed-loop costs, and has the shortest 90th percentile on the
-    cart pole and the quadrotor. Its fallback plugin: proxqp (cart pole, quadrotor), piqp on
-    the Dubins vehicle, whose soft obstacle margin makes the Hessian indefinite near the
-    obstacle, where proxqp is slow or fails and piqp's 90th percentile of the step is the
-    shortest (other systems: their registration). hpipm cannot take the
-    pseudospectral NLP's structure (one dense LG interval is no stage-wise OCP); daqp needs a
-    positive definite Hessian.
-
-    The RTI's Levenberg-Marquardt term (``python -m benchmarks.rti_levenberg_marquardt``,
-    ``benchmarks/results/rti_levenberg_marquardt.md``, tuning seeds 100-115): 0.01 on the
-    Dubins vehicle, where the plain step of the split SSGP RTI alternates between turning left
-    and right near ``v = 0`` and misses the goal on one seed; 0.01 reaches the goal on all 16
-    seeds with every RTI recipe and cuts the rejected steps, 0.03 loses a nominal episode.
-    Other systems: 0 (not measured).
-    """
+    """The registered time scales of ``model``'s system (:class:`gp_envs.PlanningDefaults`:
+    horizon, LG nodes and intervals, nodes per episodic period), or None for a model of an
+    unregistered system (then the horizon must be given). The solvers' per-system tuning is
+    :func:`gp_agents.mpc.tuning.rti_tuning`."""
     name = model.name
     return SYSTEMS[name].planning if name in SYSTEMS else None
 
 
+@dataclass(frozen=True)
 class RecedingHorizon:
     """Re-plan every ``replan_every`` periods over a fixed horizon (paper, Algorithm 1).
 
@@ -50,23 +35,54 @@ class RecedingHorizon:
     the horizon is polynomial control on ``n_intervals`` LG intervals of ``n_nodes`` nodes.
 
     Args:
-        horizon: seconds. n_nodes, n_intervals: the LG part. replan_every: ``p`` >= 1.
+        horizon: seconds (None: the system's :class:`gp_envs.PlanningDefaults`; required for
+            a model of an unregistered system).
+        n_nodes, n_intervals: the LG part (None: the system's defaults; 12 nodes on one
+            interval for an unregistered system). replan_every: ``p`` >= 1.
         held_nodes: LG nodes in each held period.
     """
+
+    horizon: float | None = None
+    n_nodes: int | None = None
+    n_intervals: int | None = None
+    replan_every: int = 1
+    held_nodes: int = 3
 
     name = "receding"
     learns = True
 
-    def __init__(self, horizon: float, n_nodes: int, n_intervals: int = 1,
-                 replan_every: int = 1, held_nodes: int = 3) -> None:
-        if int(replan_every) < 1:
-            raise ValueError(f"replan_every must be >= 1, got {replan_every}")
-        self.horizon = float(horizon)
-        self.n_nodes, self.n_intervals = int(n_nodes), int(n_intervals)
-        self.replan_every, self.held_nodes = int(replan_every), int(held_nodes)
+    def __post_init__(self) -> None:
+        if isinstance(self.replan_every, bool) or int(self.replan_every) < 1:
+            raise ValueError(f"replan_every must be >= 1, got {self.replan_every}")
+        if self.horizon is not None and not (np.isfinite(self.horizon) and self.horizon > 0):
+            raise ValueError(f"horizon must be a positive number of seconds, got {self.horizon}")
+        for name in ("n_nodes", "n_intervals", "held_nodes"):
+            value = getattr(self, name)
+            if value is not None and (isinstance(value, bool) or int(value) < 1):
+                raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+
+    def resolve(self, model: ControlModel) -> RecedingHorizon:
+        """This horizon with every unset field from ``model``'s system defaults.
+
+        Raises:
+            ValueError: no horizon given for a model of an unregistered system.
+        """
+        defaults = planning_defaults(model)
+        if self.horizon is None and defaults is None:
+            raise ValueError(f"system {model.name!r} is not registered "
+                             f"(gp_envs.register_system): pass horizon=")
+        return replace(
+            self, horizon=float(defaults.horizon if self.horizon is None else self.horizon),
+            n_nodes=int((defaults.n_nodes if defaults else 12) if self.n_nodes is None
+                        else self.n_nodes),
+            n_intervals=int((defaults.n_intervals if defaults else 1) if self.n_intervals is None
+                            else self.n_intervals),
+            replan_every=int(self.replan_every), held_nodes=int(self.held_nodes))
 
     def mesh(self, dt: float) -> Mesh:
-        """The receding mesh for control period ``dt`` (s)."""
+        """The receding mesh for control period ``dt`` (s) (a resolved horizon)."""
+        if self.horizon is None or self.n_nodes is None or self.n_intervals is None:
+            raise ValueError("an unresolved RecedingHorizon has no mesh: call resolve(model)")
         return Mesh.receding(self.horizon, dt, self.n_nodes, self.n_intervals,
                              held_periods=self.replan_every, held_nodes=self.held_nodes)
 
@@ -75,22 +91,48 @@ class RecedingHorizon:
         return plan is None or step - plan.step >= self.replan_every
 
 
+@dataclass(frozen=True)
 class Episodic:
-    """Plan once over the whole task at the first ``act``, then execute it open loop.
+    """Plan once over the whole task at the first ``act``, then execute it open loop (no
+    learning during the episode).
 
     Args:
-        duration: the task's duration (s). nodes_per_period: LG nodes per held period.
+        duration: seconds (None: the task's duration). nodes_per_period: LG nodes per held
+            period (None: the system's default, 3 for an unregistered system).
     """
+
+    duration: float | None = None
+    nodes_per_period: int | None = None
 
     name = "episodic"
     learns = False
 
-    def __init__(self, duration: float, nodes_per_period: int = 3) -> None:
-        self.horizon, self.nodes_per_period = float(duration), int(nodes_per_period)
+    def __post_init__(self) -> None:
+        if self.duration is not None and not (np.isfinite(self.duration) and self.duration > 0):
+            raise ValueError(f"duration must be a positive number of seconds, "
+                             f"got {self.duration}")
+        if self.nodes_per_period is not None and (isinstance(self.nodes_per_period, bool)
+                                                  or int(self.nodes_per_period) < 1):
+            raise ValueError(f"nodes_per_period must be an integer >= 1, "
+                             f"got {self.nodes_per_period!r}")
+
+    @property
+    def horizon(self) -> float:
+        """The planned duration, seconds (a resolved schedule)."""
+        if self.duration is None:
+            raise ValueError("an unresolved Episodic has no horizon: call resolve(model)")
+        return float(self.duration)
+
+    def resolve(self, model: ControlModel) -> Episodic:
+        """This schedule with every unset field from ``model``'s task and system defaults."""
+        defaults = planning_defaults(model)
+        return Episodic(float(model.task.duration if self.duration is None else self.duration),
+                        int((defaults.nodes_per_period if defaults else 3)
+                            if self.nodes_per_period is None else self.nodes_per_period))
 
     def mesh(self, dt: float) -> Mesh:
-        """Every period of the task held."""
-        return Mesh.episodic(self.horizon, dt, self.nodes_per_period)
+        """Every period of the task held (a resolved schedule)."""
+        return Mesh.episodic(self.horizon, dt, int(self.nodes_per_period or 3))
 
     def due(self, step: int, plan: Plan | None) -> bool:
         """Only the first period."""

@@ -1,0 +1,119 @@
+"""Named MPC recipes, as ``gym.make`` is for envs: ``make_mpc(env)`` is the controller that works.
+
+=============  ==============================================================================
+``robust``     (default) nominal physics plus the learner that held across randomized, changed
+               and noisy systems: :func:`~gp_agents.learners.parametric_ssgp` (an explicit
+               parametric part on the parameter sensitivities, the SSGP around it, restarted on
+               a change, off while worse than the nominal model), linearized per node
+``paper``      the paper's Algorithm 1: :func:`~gp_agents.learners.online_ssgp`, the GP's mean
+               inside the NLP; for reproducing the paper's tables
+``nominal``    physics only (the nominal model), no learning
+``oracle``     plans with the true model (:func:`gp_envs.oracle_model`): the upper bound that
+               no controller can see in practice
+=============  ==============================================================================
+
+Each recipe resolves its own coupled settings (the robust learner's sensitivity columns come
+from the agent's own residual), so ``make_mpc(env, recipe, scheme=...)`` is all it takes; any
+constructor setting of :class:`~gp_agents.mpc.controller.PseudospectralMPC` can be overridden by
+keyword. The learning recipes return an unfitted agent: ``agent.pretrain(data)`` with
+:func:`~gp_agents.data.collect_initial_data`.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+
+import gp_envs
+from gp_agents.learners.recipes import online_ssgp, parametric_ssgp
+from gp_agents.mpc.controller import PseudospectralMPC
+from gp_agents.mpc.settings import RTI, Converged, Residual, scheme_settings
+from gp_envs.model import ControlModel
+
+__all__ = ["DEFAULT_RECIPE", "RECIPES", "OracleModel", "make_mpc", "recipe_settings"]
+
+RECIPES: dict[str, str] = {
+    "robust": "nominal physics + parametric SSGP on the parameter sensitivities, linearized per "
+              "node; holds on randomized, changed and noisy systems (recommended)",
+    "paper": "the paper's Algorithm 1: nominal physics + online SSGP, its mean inside the NLP",
+    "nominal": "nominal physics only, no learning",
+    "oracle": "the true model (gp_envs.oracle_model): an upper bound, not a controller you can "
+              "deploy",
+}
+"""Every recipe name with its one-line description."""
+
+DEFAULT_RECIPE = "robust"
+"""The recipe of ``make_mpc(env)``."""
+
+
+class OracleModel:
+    """The oracle recipe's model source: the env's true model (:func:`gp_envs.oracle_model`),
+    read at every ``act`` (a class, not a closure, so that the agent pickles)."""
+
+    def __init__(self, env: gym.Env) -> None:
+        self.env = env
+
+    def __call__(self) -> ControlModel:
+        return gp_envs.oracle_model(self.env)
+
+
+def recipe_settings(recipe: str, scheme: str | Converged | RTI | None = None
+                    ) -> dict[str, Any]:
+    """The constructor settings of ``recipe`` with ``scheme`` (None: converged), learner
+    included (a fresh, unfitted one; None for the recipes that learn nothing); the oracle's
+    model source is added by :func:`make_mpc`.
+
+    Raises:
+        ValueError: an unknown recipe (the message lists them).
+    """
+    if recipe not in RECIPES:
+        raise ValueError(f"unknown MPC recipe {recipe!r}; recipes: {', '.join(RECIPES)}")
+    scheme = "converged" if scheme is None else scheme
+    settings = scheme_settings(scheme)  # checks the name
+    out: dict[str, Any] = {"scheme": scheme, "learner": None}
+    if recipe == "paper":
+        out["learner"] = online_ssgp()
+    elif recipe == "robust":
+        out.update(learner=parametric_ssgp(), residual=Residual(sensitivities=True))
+        if isinstance(settings, Converged):  # the RTI takes the system's tuned term
+            out["term"] = "linearized"
+    return out
+
+
+def make_mpc(env: gym.Env, recipe: str = DEFAULT_RECIPE, *,
+             scheme: str | Converged | RTI | None = None, **overrides: Any) -> PseudospectralMPC:
+    """The MPC of recipe ``recipe`` (:data:`RECIPES`) for ``env``'s nominal model and task.
+
+    Args:
+        env: a ``gp_envs`` environment (``gym.make``).
+        recipe: ``"robust"`` (default), ``"paper"``, ``"nominal"`` or ``"oracle"``.
+        scheme: ``"converged"`` (default), ``"rti"``, ``"rti-split"`` or a
+            :class:`~gp_agents.mpc.settings.Converged` / :class:`~gp_agents.mpc.settings.RTI`.
+        **overrides: constructor settings of
+            :class:`~gp_agents.mpc.controller.PseudospectralMPC` that replace the recipe's
+            (``learner=``, ``horizon=``, ``term=``, ``residual=``, ``constraints=``).
+
+    Returns:
+        The agent; unfitted for the learning recipes (call ``agent.pretrain(data)``).
+
+    Raises:
+        ValueError: an unknown recipe; a learner given to a recipe that learns nothing.
+        TypeError: not a ``gp_envs`` environment.
+
+    Example::
+
+        env = gym.make("gp_envs/CartPoleSwingUp-v0", scenario="online")
+        agent = make_mpc(env).pretrain(collect_initial_data(env, 200, seed=0))
+    """
+    if not hasattr(env.unwrapped, "nominal_model"):
+        raise TypeError(f"make_mpc needs a gp_envs environment (with a nominal_model), got "
+                        f"{type(env.unwrapped).__name__}")
+    settings = recipe_settings(recipe, scheme)
+    if "learner" in overrides and settings["learner"] is None and overrides["learner"] is not None:
+        raise ValueError(f"recipe {recipe!r} learns nothing: it takes no learner (the learning "
+                         f"recipes: 'robust', 'paper')")
+    settings.update(overrides)
+    learner = settings.pop("learner")
+    source = OracleModel(env) if recipe == "oracle" else None
+    return PseudospectralMPC.from_env(env, learner, model_source=source, **settings)

@@ -1,0 +1,174 @@
+"""The MPC's settings, grouped by what they configure (as do-mpc's settings and acados' solver
+options are): each option lives on the object it configures, so a setting that does not apply
+to a combination cannot be passed, and one that could be passed but would change nothing raises
+when the MPC is built (:class:`~gp_agents.mpc.controller.PseudospectralMPC`).
+
+==============================  ===========================================================
+``horizon=``                    :class:`~gp_agents.mpc.schedule.RecedingHorizon` (Algorithm 1)
+                                or :class:`~gp_agents.mpc.schedule.Episodic` (plan once), or
+                                seconds (a receding horizon of that length)
+``scheme=``                     :class:`Converged` (every plan solved to convergence) or
+                                :class:`RTI` (one SQP step per period); or ``"converged"``,
+                                ``"rti"``, ``"rti-split"``
+``term=``                       how the learner enters the NLP: a name of
+                                :data:`~gp_agents.mpc.controller.LEARNED_TERMS` or a
+                                :class:`~gp_agents.mpc.learned_term.LearnedTerm`
+``residual=``                   :class:`Residual`: which states get a learned residual, what
+                                the learner sees, whether it learns online
+``constraints=``                :class:`~gp_agents.mpc.ocp.Constraints`: state box margin,
+                                obstacle margin, uncertainty radius
+==============================  ===========================================================
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+from gp_agents.mpc.active_set import ActiveSetQP
+from gp_agents.mpc.rti import check_levenberg_marquardt
+
+__all__ = ["RTI", "SCHEME_NAMES", "Converged", "Residual", "scheme_settings"]
+
+
+@dataclass(frozen=True)
+class Converged:
+    """Every plan solved to convergence by a CasADi NLP solver (the paper's scheme).
+
+    Attributes:
+        solver: a CasADi ``nlpsol`` plugin (``"ipopt"``; ``"sqpmethod"`` ...).
+        solver_options: the plugin's options (e.g. ``{"ipopt": {"tol": 1e-8}}``).
+        max_iterations: iteration cap of one solve, >= 1; the only cap (no wall-clock limit,
+            so outcomes never depend on machine load).
+        jit: compile the NLP's functions to C at build (slower build, faster solves).
+        warm_start_duals: a warm solve also starts from the previous solve's multipliers, with
+            IPOPT's warm-start options (IPOPT only). Off by default: on the oracle cart pole it
+            stays in the previous plan's basin and costs 2.5% more.
+    """
+
+    solver: str = "ipopt"
+    solver_options: Mapping[str, Any] | None = None
+    max_iterations: int = 500
+    jit: bool = False
+    warm_start_duals: bool = False
+
+    name = "converged"
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.solver, str) and self.solver):
+            raise ValueError(f"Converged: solver must be a CasADi nlpsol plugin name, got "
+                             f"{self.solver!r}")
+        if isinstance(self.max_iterations, bool) or int(self.max_iterations) < 1:
+            raise ValueError(f"Converged: max_iterations must be >= 1, got "
+                             f"{self.max_iterations!r}")
+        if self.solver_options is not None and not isinstance(self.solver_options, Mapping):
+            raise TypeError(f"Converged: solver_options must be a mapping, got "
+                            f"{type(self.solver_options).__name__}")
+        if self.warm_start_duals and self.solver != "ipopt":
+            raise ValueError(f"Converged: warm_start_duals uses IPOPT's warm-start options; "
+                             f"it does not apply to solver {self.solver!r}")
+
+    def planner_settings(self) -> dict[str, Any]:
+        """Keyword settings of :class:`~gp_agents.mpc.planner.Planner`."""
+        return {"solver": self.solver, "solver_options": dict(self.solver_options or {}),
+                "max_iterations": int(self.max_iterations), "jit": bool(self.jit),
+                "warm_start_duals": bool(self.warm_start_duals)}
+
+
+@dataclass(frozen=True)
+class RTI:
+    """The real-time iteration: a converged solve at a cold start, then one Gauss-Newton SQP
+    step per replan from the shifted plan (:class:`~gp_agents.mpc.rti.RTIPlanner`); a step whose
+    constraint violation is too large is rejected and replaced by a converged solve.
+
+    Attributes:
+        split: split each step into a preparation (after the action is sent, together with the
+            learner update) and a feedback phase (the QP with the measured state):
+            :class:`~gp_agents.mpc.rti_split.SplitRTIPlanner`. Each step's record then has its
+            ``preparation_time``; the rest of ``act_time`` is the latency.
+        qp_solver: a CasADi ``conic`` plugin, ``"active-set:<plugin>"`` or an
+            :class:`~gp_agents.mpc.active_set.ActiveSetQP`; None: the system's tuning
+            (:func:`gp_agents.mpc.tuning.rti_tuning`).
+        levenberg_marquardt: ``mu`` >= 0 on the QP Hessian's diagonal; None: the system's
+            tuning.
+        fallback: the converged solves (cold start, rejected steps); by default warm-started
+            with the previous multipliers.
+    """
+
+    split: bool = False
+    qp_solver: str | ActiveSetQP | None = None
+    levenberg_marquardt: float | None = None
+    fallback: Converged = field(default_factory=lambda: Converged(warm_start_duals=True))
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.split, bool):
+            raise TypeError(f"RTI: split must be a bool, got {self.split!r}")
+        if self.levenberg_marquardt is not None:
+            check_levenberg_marquardt(self.levenberg_marquardt)
+        if not isinstance(self.fallback, Converged):
+            raise TypeError(f"RTI: fallback must be a Converged, got "
+                            f"{type(self.fallback).__name__}")
+
+    @property
+    def name(self) -> str:
+        """``"rti"`` or ``"rti-split"``."""
+        return "rti-split" if self.split else "rti"
+
+
+SCHEME_NAMES = ("converged", "rti", "rti-split")
+"""The scheme shortcuts of :func:`scheme_settings`."""
+
+
+def scheme_settings(scheme: str | Converged | RTI) -> Converged | RTI:
+    """The settings object of ``scheme``: ``"converged"`` -> :class:`Converged`, ``"rti"`` ->
+    :class:`RTI`, ``"rti-split"`` -> ``RTI(split=True)``; an object is returned as it is.
+
+    Raises:
+        ValueError: an unknown name. TypeError: neither a name nor a settings object.
+    """
+    if isinstance(scheme, Converged | RTI):
+        return scheme
+    if isinstance(scheme, str):
+        if scheme == "converged":
+            return Converged()
+        if scheme in ("rti", "rti-split"):
+            return RTI(split=scheme == "rti-split")
+        raise ValueError(f"scheme must be one of {list(SCHEME_NAMES)} or a Converged / RTI, "
+                         f"got {scheme!r}")
+    raise TypeError(f"scheme must be a name or a Converged / RTI, got {type(scheme).__name__}")
+
+
+@dataclass(frozen=True)
+class Residual:
+    """The learned residual: which states get one, what the learner sees, whether it learns
+    online (:class:`~gp_agents.residual.ResidualModel`). Only for an MPC with a learner.
+
+    Attributes:
+        uncertain: state components with a learned residual; None: the model's accelerations
+            (``dynamic_indices``).
+        inputs: state components fed to the learner: indices, None (all), or ``"model"`` (those
+            the nominal model's uncertain rates depend on).
+        sensitivities: the learner also sees the nominal model's parameter sensitivities
+            ``d f_p / d p`` (with linear features on them, an explicit parametric part of the
+            residual: :func:`gp_agents.parametric_ssgp`).
+        learn_online: feed each observed transition to the learner's ``update`` before the next
+            plan (Algorithm 1). None: when the horizon is receding and the learner has an
+            ``update``; True where neither holds raises.
+    """
+
+    uncertain: tuple[int, ...] | None = None
+    inputs: tuple[int, ...] | Literal["model"] | None = None
+    sensitivities: bool = False
+    learn_online: bool | None = None
+
+    def __post_init__(self) -> None:
+        if self.uncertain is not None:
+            object.__setattr__(self, "uncertain", tuple(int(i) for i in self.uncertain))
+        if self.inputs is not None and not isinstance(self.inputs, str):
+            object.__setattr__(self, "inputs", tuple(int(i) for i in self.inputs))
+        if not isinstance(self.sensitivities, bool):
+            raise TypeError(f"Residual: sensitivities must be a bool, got {self.sensitivities!r}")
+        if self.learn_online is not None and not isinstance(self.learn_online, bool):
+            raise TypeError(f"Residual: learn_online must be a bool or None, got "
+                            f"{self.learn_online!r}")
