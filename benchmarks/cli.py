@@ -4,7 +4,9 @@ Examples::
 
     python -m benchmarks --quick                         # the README's command (minutes)
     python -m benchmarks --preset full --workers 2       # everything (hours on 2 cores)
-    python -m benchmarks --controllers nominal-mpc,ssgp-mpc --envs cartpole --seeds 0-4
+    python -m benchmarks --controllers robust-mpc,oracle-mpc --envs cartpole --seeds 0-4
+    python -m benchmarks --controllers robust-mpc@rti-split --envs cartpole --randomize 0.1 \
+        --data own --seeds 100-119                       # any cell, any seeds
     python -m benchmarks --preset dubins --scheduler tcp://10.0.0.5:8786   # on a Dask cluster
     python -m benchmarks --list-presets
 
@@ -35,7 +37,13 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import NoReturn
 
-from benchmarks.controllers import CONTROLLERS, ENVS, UnknownNameError, check_name
+from benchmarks.controllers import (
+    CONTROLLERS,
+    ENVS,
+    N_INITIAL_POINTS,
+    UnknownNameError,
+    check_name,
+)
 from benchmarks.presets import PRESETS, Preset, custom_experiment, get_preset
 from benchmarks.runner import (
     DEFAULT_CONNECT_TIMEOUT_S,
@@ -46,7 +54,7 @@ from benchmarks.runner import (
     run_trials,
     trial_path,
 )
-from benchmarks.trial import TrialSpec
+from benchmarks.trial import DATA_SOURCES, STARTS, Cell, TrialSpec
 
 RESULTS_DIR = Path("benchmark-results")
 """Default parent of the results directories, relative to the current directory
@@ -133,7 +141,8 @@ def build_parser() -> _Parser:
     p = _Parser(
         prog="gp-bench", description="Run controllers x envs x scenarios x seeds through "
         "gym.make and agent.act; write trajectories, metrics, plots and a Markdown report.",
-        epilog="Presets: " + ", ".join(PRESETS) + ". Controllers: " + ", ".join(CONTROLLERS)
+        epilog="Presets: " + ", ".join(PRESETS) + ". Controllers: "
+        + ", ".join(c.name for c in CONTROLLERS.values() if c.main) + " (all: --list-controllers)"
         + ". Envs: " + ", ".join(ENVS) + ". Exit status: 0 done, 1 some trial failed (see "
         "metrics.csv), 2 usage error or no Dask scheduler/worker (one line on stderr), 130 "
         "interrupted; finished trials are always kept.")
@@ -153,6 +162,22 @@ def build_parser() -> _Parser:
                    "for the default cell): a filter")
     p.add_argument("--seeds", type=parse_seeds, help="seeds, e.g. 0-4 or 0,2,5 (custom grid: "
                    "default 0; with a preset: a filter)")
+    grid = p.add_argument_group(
+        "the custom grid's cell (with --controllers and no --preset: any cell on any seeds)")
+    grid.add_argument("--randomize", type=_number(float, 0, "a number in [0, 1)"),
+                      help="relative spread of the true parameters per reset (env option "
+                      "randomize; default 0: the scenario's truth)")
+    grid.add_argument("--data", choices=DATA_SOURCES, help="where the learning recipes' "
+                      "initial data come from: same (default; the episode's truth draw), diff "
+                      "(another draw of the same spread), own (collect_initial_data(env, n, "
+                      "seed) on the trial's env, as a user does)")
+    grid.add_argument("--noise", type=_number(float, 0, "a number >= 0"), help="observation "
+                      "noise standard deviation, in each state's unit (default 0)")
+    grid.add_argument("--start", choices=STARTS, help="default (the env's reset) or perturbed "
+                      "(a seeded offset within the system's perturbation widths)")
+    grid.add_argument("--n-init", type=_number(int, 1, "an integer >= 1"),
+                      help=f"initial samples of the learning recipes (default "
+                      f"{N_INITIAL_POINTS})")
     p.add_argument("--max-steps", type=_number(int, 1, "an integer >= 1"),
                    help="stop every episode after this many steps (smoke runs; stored as "
                    "different trials)")
@@ -179,8 +204,10 @@ def build_parser() -> _Parser:
                    "--out)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--list-presets", action="store_true", help="list presets and exit")
-    p.add_argument("--list-controllers", action="store_true", help="list controllers, envs and "
-                   "scenarios and exit")
+    p.add_argument("--list-controllers", action="store_true", help="list the controllers (main "
+                   "names first), envs and scenarios and exit; with --all also the older "
+                   "names' aliases")
+    p.add_argument("--all", action="store_true", help="with --list-controllers: aliases too")
     return p
 
 
@@ -232,17 +259,30 @@ def resolve(args: argparse.Namespace) -> tuple[Preset, Path]:
     valid_scenarios = sorted({s for e in ENVS.values() for s in e.scenarios})
     for s in scenarios or ():
         check_name("scenario", s, valid_scenarios)
+    cell_options = {k: getattr(args, k, None) for k in ("randomize", "data", "noise", "start")}
+    given = {k: v for k, v in cell_options.items() if v is not None}
+    n_init = getattr(args, "n_init", None)
     if args.preset is None and controllers is not None:
+        if given.get("randomize", 0) >= 1:
+            raise ValueError(f"--randomize must be in [0, 1), got {given['randomize']}")
         exp = custom_experiment(controllers, envs or list(ENVS), scenarios, args.seeds or [0],
-                                args.max_steps)
+                                args.max_steps, Cell(**given),
+                                N_INITIAL_POINTS if n_init is None else n_init)
         preset = Preset("custom", "a custom grid of controllers x envs x scenarios x seeds",
                         (exp,))
     else:
+        if given or n_init is not None:
+            flags = [f"--{k.replace('_', '-')}" for k in (*given, *(["n_init"] if n_init
+                                                                   is not None else []))]
+            raise ValueError(f"{', '.join(flags)} set the cell of a custom grid (--controllers "
+                             f"without --preset); a preset's cells are chosen with --cells")
         preset = _filter(get_preset(args.preset or "quick"), controllers, envs, scenarios,
                          args.seeds, args.max_steps, cells)
         if not preset.experiments:
-            raise UnknownNameError("the filters leave no trial of preset "
-                                   f"{args.preset or 'quick'!r}")
+            raise UnknownNameError(
+                f"the filters leave no trial of preset {args.preset or 'quick'!r}; to run any "
+                f"cell on any seeds, use a custom grid: --controllers ... --envs ... --seeds "
+                f"... with --randomize/--data/--noise/--start/--n-init")
     if args.scheduler is not None:
         try:
             check_scheduler_address(args.scheduler)
@@ -285,9 +325,23 @@ def _list_presets() -> str:
     return "\n".join(lines)
 
 
-def _list_controllers() -> str:
-    lines = ["controllers:"]
-    lines += [f"  {c.name:18s} {c.description}" for c in CONTROLLERS.values()]
+def _list_controllers(aliases: bool = False) -> str:
+    main = [c for c in CONTROLLERS.values() if c.main]
+    lines = ["controllers (MPC recipes: <recipe>-mpc, with @rti or @rti-split for the "
+             "real-time iteration; make_mpc(env, recipe) in Python):"]
+    lines += [f"  {c.name:20s} {c.description}" for c in main]
+    schemes = [c.name for c in CONTROLLERS.values() if c.recipe and not c.main
+               and c.alias_of is None]
+    lines.append("  schemes: " + ", ".join(schemes))
+    lines.append("study variants:")
+    lines += [f"  {c.name:34s} {c.description}" for c in CONTROLLERS.values()
+              if not c.main and c.recipe is None and c.alias_of is None]
+    if aliases:
+        lines.append("aliases (older names, kept so that committed results load):")
+        lines += [f"  {c.name:34s} = {c.alias_of}" for c in CONTROLLERS.values() if c.alias_of]
+    else:
+        lines.append(f"({sum(1 for c in CONTROLLERS.values() if c.alias_of)} older names are "
+                     f"aliases: --list-controllers --all)")
     lines.append("envs (scenarios, default first):")
     for name, e in ENVS.items():
         others = [s for s in e.scenarios if s != e.default_scenario]
@@ -321,7 +375,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(_list_presets())
         return 0
     if args.list_controllers:
-        print(_list_controllers())
+        print(_list_controllers(args.all))
         return 0
     try:
         preset, out = resolve(args)

@@ -1,56 +1,24 @@
-"""Every controller recipe and every env of the benchmark suite, in one place.
+"""Every controller and every env of the benchmark suite, in one place.
 
-A controller is named by a short string (``"ssgp-mpc"``, ``"sac"``, ...) and built for one env
-and seed by :func:`build_controller`. Change a recipe here and every preset follows.
+A controller is named by a short string and built for one env and seed by
+:func:`build_controller`. The names compose (:func:`controller_name`):
 
-MPC recipes (:class:`gp_agents.PseudospectralMPC`, built after ``env.reset`` so they plan with
-the episode's nominal model; for the Dubins scenario that model is redrawn at every reset):
+- ``<recipe>-mpc[@<scheme>]``: the MPC recipe of :data:`gp_agents.RECIPES` (``robust``,
+  ``paper``, ``nominal``, ``oracle``) with the scheme ``converged`` (default), ``rti`` or
+  ``rti-split``, built by :func:`gp_agents.make_mpc`: ``robust-mpc``, ``paper-mpc@rti-split``;
+- the RL algorithms ``sac``, ``ppo``, ``tqc`` (the shipped stable-baselines3 policies,
+  :class:`gp_agents.rl.RLAgent`; a missing model, or one trained for another scenario, makes the
+  controller *unavailable* for that env, which the runner records instead of crashing);
+- study variants under their own names (:data:`STUDY_VARIANTS`: the offline GP, the episodic
+  plans, the speed and residual variants of the paper's recipe, the RTI's other learned terms,
+  the warm-dual converged references), which earlier studies decided on.
 
-=================  ======================================================================
-nominal-mpc        nominal physics only, receding horizon
-oracle-mpc         the true model (``model_source=lambda: gp_envs.oracle_model(env)``): an
-                   upper bound; the benchmark hands the truth in, the agent never looks
-gp-mpc             nominal + :class:`ExactGP` fitted once on the initial data, no online learning
-ssgp-mpc           nominal + :func:`gp_agents.online_ssgp` (``IncrementalSSGP(50,
-                   forgetting_factor=0.995)``, own-likelihood hyperparameters with a
-                   length-scale floor) pretrained on the initial data, learning online
-<base>-episodic     the same model, planned once over the whole episode and run open loop
-=================  ======================================================================
+Every name the suite used before the recipes had names (``ssgp-mpc``,
+``ssgp-mpc-linearized-parametric``, ``nominal-mpc-rti``, ...) stays a working alias
+(:data:`ALIASES`), with its label, so that committed results load and reproduce.
 
-Speed variants of ``ssgp-mpc`` (:data:`SPEED_VARIANTS`, presets ``speed-options`` and
-``linearized``): ``ssgp-mpc-nominal-hessian`` (``hessian="nominal"``), ``ssgp-mpc-model-inputs``
-(``input_indices="model"``), ``ssgp-mpc-linearized`` (``learned_dynamics="linearized"``) and
-``ssgp-mpc-linearized-model-inputs`` (both).
-
-Variants with an explicit parametric part of the residual (:data:`SENSITIVITY_VARIANTS`, preset
-``robustness``): ``ssgp-mpc-sensitivities`` (the learner also sees the nominal model's parameter
-sensitivities, ``sensitivities=True``, and has linear features) and
-``ssgp-mpc-linearized-sensitivities``; and ``ssgp-mpc-adaptive`` / ``ssgp-mpc-linearized-adaptive``,
-whose learner also restarts when it detects that the system changed
-(:class:`gp_agents.learners.ChangeDetector`); ``ssgp-mpc-linearized-guarded``, the latter with
-the residual switched off while it predicts worse than the nominal model
-(:class:`gp_agents.learners.NominalFallback`); ``ssgp-mpc-linearized-saturated``, the guarded
-one whose learner saturates its standardized inputs (``input_saturation``,
-:data:`gp_agents.learners.INPUT_SATURATION` standard deviations);
-``ssgp-mpc-linearized-parametric``, the saturated one with linear features on the parameter
-sensitivities only (the residual's parametric part alone).
-
-Real-time-iteration variants (:data:`RTI_VARIANTS`, preset ``rti``): ``nominal-mpc-rti``,
-``oracle-mpc-rti``, ``ssgp-mpc-rti`` (``scheme="rti"``; the SSGP one with the system's
-registered learned term, ``PlanningDefaults.rti_learned_dynamics``),
-``ssgp-mpc-rti-linearized`` (the GP linearized per node on every system),
-``ssgp-mpc-rti-zero-order`` (the GP's value frozen per node, adjoint-corrected),
-``ssgp-mpc-rti-pattern`` (the GP linearized on the nominal Jacobian pattern, the rest
-adjoint-corrected), ``ssgp-mpc-rti-parametric`` (the learner of
-``ssgp-mpc-linearized-parametric``), and each of the seven with ``-split`` (``scheme="rti-split"``:
-preparation after the action, feedback on the measurement);
-and their converged references warm-started with the previous multipliers
-(:data:`WARM_DUAL_VARIANTS`): ``nominal-mpc-warm-duals``, ``oracle-mpc-warm-duals``.
-
-RL recipes load the shipped stable-baselines3 policies from ``benchmarks/models/<env>/<algo>/``
-(:class:`gp_agents.rl.RLAgent`; package data, so a non-editable install has them); a missing
-model (or one trained for another scenario) makes the controller *unavailable* for that env,
-which the runner records instead of crashing.
+MPCs are built after ``env.reset``, so they plan with the episode's nominal model (for the
+Dubins scenario that model is redrawn at every reset).
 """
 
 from __future__ import annotations
@@ -63,9 +31,10 @@ from typing import Any
 
 import gymnasium as gym
 
-import gp_envs
-from gp_agents.mpc import GPInNLP
+from gp_agents.mpc import RECIPES, Converged, Episodic, GPInNLP, Residual, make_mpc
 from gp_agents.mpc.controller import default_learned_dynamics
+from gp_agents.mpc.recipes import OracleModel, recipe_settings
+from gp_agents.mpc.settings import SCHEME_NAMES
 from gp_envs.systems import SYSTEMS
 
 MODELS_DIR = Path(__file__).resolve().parent / "models"
@@ -113,14 +82,20 @@ class ControllerRecipe:
         label: display name in tables and plots.
         family: ``"mpc"`` or ``"rl"``.
         description: one line for ``--list-controllers`` and reports.
-        learner: ``None``, ``"exact"`` (offline :class:`ExactGP`) or ``"ssgp"``
-            (:class:`IncrementalSSGP`); MPC only.
+        learner: ``None``, ``"exact"`` (offline :class:`ExactGP`) or an SSGP kind of
+            :func:`make_learner`; MPC only.
         oracle: plan with the true model (upper bound); MPC only.
         mode: ``"receding"`` or ``"episodic"``; MPC only.
         learn_online: feed closed-loop transitions to the learner; MPC only.
         algo: ``"sac"``, ``"ppo"`` or ``"tqc"``; RL only.
-        settings: extra keyword settings of :class:`gp_agents.PseudospectralMPC` as
-            ``(name, value)`` pairs (the speed variants of the SSGP-MPC); MPC only.
+        settings: constructor settings of :class:`gp_agents.PseudospectralMPC` as
+            ``(name, value)`` pairs (the study variants); MPC only.
+        recipe: the :data:`gp_agents.RECIPES` name it is built from (:func:`gp_agents.make_mpc`;
+            None: the study variants, built from their own settings).
+        scheme: the scheme of a recipe-built controller (``"converged"``, ``"rti"``,
+            ``"rti-split"``).
+        alias_of: the composed name this older name stands for (None: a main or study name).
+        main: listed first by ``--list-controllers`` (the recipes and RL algorithms).
     """
 
     name: str
@@ -133,6 +108,10 @@ class ControllerRecipe:
     learn_online: bool = False
     algo: str | None = None
     settings: tuple[tuple[str, Any], ...] = ()
+    recipe: str | None = None
+    scheme: str = "converged"
+    alias_of: str | None = None
+    main: bool = False
 
     @property
     def base(self) -> str:
@@ -147,198 +126,193 @@ class ControllerRecipe:
         return self.learner is not None
 
 
-def _mpc_recipes() -> dict[str, ControllerRecipe]:
-    variants = {
-        "nominal": ("nominal", "nominal physics", None, False, False),
-        "oracle": ("oracle", "true model (upper bound)", None, True, False),
-        "gp": ("offline GP", "nominal + exact GP fitted once on the initial data", "exact",
-               False, False),
-        "ssgp": ("SSGP", "nominal + incremental SSGP (r=50, lambda=0.995), learning online",
-                 "ssgp", False, True),
-    }
-    out: dict[str, ControllerRecipe] = {}
-    for key, (label, desc, learner, oracle, online) in variants.items():
-        out[f"{key}-mpc"] = ControllerRecipe(
-            f"{key}-mpc", f"{label} MPC", "mpc", f"{desc}; receding-horizon MPC",
-            learner=learner, oracle=oracle, mode="receding", learn_online=online)
-        out[f"{key}-episodic"] = ControllerRecipe(
-            f"{key}-episodic", f"{label} episodic", "mpc",
-            f"{desc.split(', learning')[0]}; planned once over the episode, open loop",
-            learner=learner, oracle=oracle, mode="episodic", learn_online=False)
+def controller_name(recipe: str, scheme: str = "converged") -> str:
+    """The composed controller name of an MPC recipe and scheme: ``robust-mpc``,
+    ``paper-mpc@rti-split``."""
+    return f"{recipe}-mpc" + ("" if scheme == "converged" else f"@{scheme}")
+
+
+_RECIPE_LEARNERS = {"robust": "ssgp-parametric", "paper": "ssgp", "nominal": None,
+                    "oracle": None}
+_RECIPE_LABELS = {"robust": "robust", "paper": "paper", "nominal": "nominal", "oracle": "oracle"}
+_SCHEME_LABELS = {"converged": "", "rti": ", RTI", "rti-split": ", RTI split"}
+
+
+def _recipe_controllers() -> dict[str, ControllerRecipe]:
+    """``<recipe>-mpc[@<scheme>]`` for every library recipe and scheme."""
+    out = {}
+    for recipe, description in RECIPES.items():
+        learner = _RECIPE_LEARNERS[recipe]
+        for scheme in SCHEME_NAMES:
+            name = controller_name(recipe, scheme)
+            tail = "" if scheme == "converged" else f" ({scheme})"
+            out[name] = ControllerRecipe(
+                name, f"{_RECIPE_LABELS[recipe]} MPC{_SCHEME_LABELS[scheme]}", "mpc",
+                description + tail, learner=learner, oracle=recipe == "oracle",
+                learn_online=learner is not None, recipe=recipe, scheme=scheme,
+                main=scheme == "converged")
     return out
 
 
-def _ssgp_variant(suffix: str, label: str, description: str, learner: str = "ssgp",
-                  **settings: Any) -> tuple[str, ControllerRecipe]:
-    """``ssgp-mpc-<suffix>``: the online SSGP-MPC with extra :class:`PseudospectralMPC`
-    settings (and the learner kind of :func:`make_learner`)."""
-    name = f"ssgp-mpc-{suffix}"
-    return name, ControllerRecipe(name, f"SSGP MPC, {label}", "mpc", description,
-                                  learner=learner, learn_online=True,
+ALIASES: dict[str, tuple[str, str]] = {
+    "ssgp-mpc": ("paper-mpc", "SSGP MPC"),
+    "ssgp-mpc-linearized-parametric": ("robust-mpc", "SSGP MPC, linearized, parametric"),
+    "nominal-mpc-rti": ("nominal-mpc@rti", "nominal MPC, RTI"),
+    "oracle-mpc-rti": ("oracle-mpc@rti", "oracle MPC, RTI"),
+    "ssgp-mpc-rti": ("paper-mpc@rti", "SSGP MPC, RTI"),
+    "ssgp-mpc-rti-parametric": ("robust-mpc@rti", "SSGP MPC, RTI parametric"),
+    "nominal-mpc-rti-split": ("nominal-mpc@rti-split", "nominal MPC, RTI, split"),
+    "oracle-mpc-rti-split": ("oracle-mpc@rti-split", "oracle MPC, RTI, split"),
+    "ssgp-mpc-rti-split": ("paper-mpc@rti-split", "SSGP MPC, RTI, split"),
+    "ssgp-mpc-rti-parametric-split": ("robust-mpc@rti-split", "SSGP MPC, RTI parametric, split"),
+}
+"""Every older name of a recipe-built controller: ``old -> (composed name, old label)``. Frozen:
+committed results and presets use these names, and build exactly the composed controller."""
+
+
+def _variant(name: str, label: str, description: str, learner: str | None = "ssgp",
+             oracle: bool = False, mode: str = "receding",
+             **settings: Any) -> tuple[str, ControllerRecipe]:
+    """A study variant: its own settings of :class:`gp_agents.PseudospectralMPC`."""
+    return name, ControllerRecipe(name, label, "mpc", description, learner=learner,
+                                  oracle=oracle, mode=mode,
+                                  learn_online=learner is not None and mode == "receding",
                                   settings=tuple(settings.items()))
 
 
-SPEED_VARIANTS: dict[str, ControllerRecipe] = dict([
-    _ssgp_variant("nominal-hessian", "nominal Hessian",
-                  "ssgp-mpc with the GP's second derivatives dropped from the Lagrangian "
-                  "Hessian (learned_dynamics=GPInNLP(hessian='nominal'))",
-                  learned_dynamics=GPInNLP(hessian="nominal")),
-    _ssgp_variant("model-inputs", "model inputs",
-                  "ssgp-mpc whose learner sees only the states the nominal model's "
-                  "accelerations depend on (input_indices='model')", input_indices="model"),
-    _ssgp_variant("linearized", "linearized",
-                  "ssgp-mpc planning with the GP residual linearized per node about the warm "
-                  "start (learned_dynamics='linearized')", learned_dynamics="linearized"),
-    _ssgp_variant("linearized-model-inputs", "linearized, model inputs",
-                  "ssgp-mpc-linearized whose learner sees only the states the nominal model's "
-                  "accelerations depend on (input_indices='model')",
-                  learned_dynamics="linearized", input_indices="model"),
+def _episodic(base: str, label: str, desc: str, learner: str | None,
+              oracle: bool = False) -> tuple[str, ControllerRecipe]:
+    return _variant(f"{base}-episodic", f"{label} episodic",
+                    f"{desc}; planned once over the episode, open loop", learner, oracle,
+                    mode="episodic", horizon=Episodic())
+
+
+_SENS = Residual(sensitivities=True)
+STUDY_VARIANTS: dict[str, ControllerRecipe] = dict([
+    _variant("gp-mpc", "offline GP MPC", "nominal + exact GP fitted once on the initial data, "
+             "no online learning; receding-horizon MPC", learner="exact"),
+    _episodic("nominal", "nominal", "nominal physics", None),
+    _episodic("oracle", "oracle", "true model (upper bound)", None, oracle=True),
+    _episodic("gp", "offline GP", "nominal + exact GP fitted once on the initial data",
+              "exact"),
+    _episodic("ssgp", "SSGP", "nominal + incremental SSGP (r=50, lambda=0.995)", "ssgp"),
+    # speed variants of the paper's recipe (presets speed-options, linearized)
+    _variant("ssgp-mpc-nominal-hessian", "SSGP MPC, nominal Hessian",
+             "ssgp-mpc with the GP's second derivatives dropped from the Lagrangian Hessian "
+             "(term=GPInNLP(hessian='nominal'))", term=GPInNLP(hessian="nominal")),
+    _variant("ssgp-mpc-model-inputs", "SSGP MPC, model inputs",
+             "ssgp-mpc whose learner sees only the states the nominal model's accelerations "
+             "depend on (Residual(inputs='model'))", residual=Residual(inputs="model")),
+    _variant("ssgp-mpc-linearized", "SSGP MPC, linearized",
+             "ssgp-mpc planning with the GP residual linearized per node about the warm start "
+             "(term='linearized')", term="linearized"),
+    _variant("ssgp-mpc-linearized-model-inputs", "SSGP MPC, linearized, model inputs",
+             "ssgp-mpc-linearized whose learner sees only the states the nominal model's "
+             "accelerations depend on (Residual(inputs='model'))", term="linearized",
+             residual=Residual(inputs="model")),
+    # residual variants on the way to the robust recipe (preset robustness)
+    _variant("ssgp-mpc-sensitivities", "SSGP MPC, sensitivities",
+             "ssgp-mpc whose learner also sees the nominal model's parameter sensitivities "
+             "d f_p/d p (Residual(sensitivities=True)) and has linear features "
+             "(online_ssgp(linear_features=True))", learner="ssgp-linear", residual=_SENS),
+    _variant("ssgp-mpc-linearized-sensitivities", "SSGP MPC, linearized, sensitivities",
+             "ssgp-mpc-sensitivities planning with the GP residual linearized per node",
+             learner="ssgp-linear", residual=_SENS, term="linearized"),
+    _variant("ssgp-mpc-adaptive", "SSGP MPC, adaptive",
+             "ssgp-mpc-sensitivities whose learner also restarts from the new regime's samples "
+             "when its one-step prediction errors show that the system changed "
+             "(ChangeDetector)", learner="ssgp-adaptive", residual=_SENS),
+    _variant("ssgp-mpc-linearized-adaptive", "SSGP MPC, linearized, adaptive",
+             "ssgp-mpc-adaptive planning with the GP residual linearized per node",
+             learner="ssgp-adaptive", residual=_SENS, term="linearized"),
+    _variant("ssgp-mpc-linearized-guarded", "SSGP MPC, linearized, guarded",
+             "ssgp-mpc-linearized-adaptive whose residual is switched off while it predicts the "
+             "newest samples worse than the nominal model (NominalFallback)",
+             learner="ssgp-guarded", residual=_SENS, term="linearized"),
+    _variant("ssgp-mpc-linearized-saturated", "SSGP MPC, linearized, saturated",
+             "ssgp-mpc-linearized-guarded whose learner saturates its standardized inputs at "
+             "INPUT_SATURATION standard deviations", learner="ssgp-saturated", residual=_SENS,
+             term="linearized"),
+    # the RTI's other learned terms (preset rti)
+    _variant("ssgp-mpc-rti-linearized", "SSGP MPC, RTI linearized",
+             "paper-mpc@rti with the GP linearized per node at the shifted plan on every system "
+             "(term='linearized': its full Jacobian in the QP)", scheme="rti",
+             term="linearized"),
+    _variant("ssgp-mpc-rti-zero-order", "SSGP MPC, RTI zero-order",
+             "paper-mpc@rti with the GP's value frozen per node (term='zero-order': the nominal "
+             "QP structure, the gradient corrected with the previous multipliers)",
+             scheme="rti", term="zero-order"),
+    _variant("ssgp-mpc-rti-pattern", "SSGP MPC, RTI pattern",
+             "paper-mpc@rti with the GP's Jacobian kept only on the nominal model's Jacobian "
+             "pattern (term='linearized-pattern')", scheme="rti", term="linearized-pattern"),
+    # the converged references warm-started with the previous multipliers (preset rti)
+    _variant("nominal-mpc-warm-duals", "nominal MPC, warm duals",
+             "nominal-mpc whose converged IPOPT solves also start from the previous solve's "
+             "multipliers (Converged(warm_start_duals=True)): the fastest converged reference "
+             "for the RTI's step-time ratios", learner=None,
+             scheme=Converged(warm_start_duals=True)),
+    _variant("oracle-mpc-warm-duals", "oracle MPC, warm duals",
+             "oracle-mpc whose converged IPOPT solves also start from the previous solve's "
+             "multipliers (Converged(warm_start_duals=True))", learner=None, oracle=True,
+             scheme=Converged(warm_start_duals=True)),
 ])
-"""Variants of ``ssgp-mpc`` that trade exactness or generality for speed (issue: the SSGP-MPC's
-step time), compared by the ``speed-options`` and ``linearized`` presets."""
-
-SENSITIVITY_VARIANTS: dict[str, ControllerRecipe] = dict([
-    _ssgp_variant("sensitivities", "sensitivities",
-                  "ssgp-mpc whose learner also sees the nominal model's parameter sensitivities "
-                  "d f_p/d p (sensitivities=True) and has linear features "
-                  "(online_ssgp(linear_features=True)): an explicit parametric part of the "
-                  "residual", learner="ssgp-linear", sensitivities=True),
-    _ssgp_variant("linearized-sensitivities", "linearized, sensitivities",
-                  "ssgp-mpc-sensitivities planning with the GP residual linearized per node "
-                  "(learned_dynamics='linearized')", learner="ssgp-linear",
-                  sensitivities=True, learned_dynamics="linearized"),
-    _ssgp_variant("adaptive", "adaptive",
-                  "ssgp-mpc-sensitivities whose learner also restarts from the new regime's "
-                  "samples when its one-step prediction errors show that the system changed "
-                  "(online_ssgp(linear_features=True, change_detector=ChangeDetector()))",
-                  learner="ssgp-adaptive", sensitivities=True),
-    _ssgp_variant("linearized-adaptive", "linearized, adaptive",
-                  "ssgp-mpc-adaptive planning with the GP residual linearized per node "
-                  "(learned_dynamics='linearized')", learner="ssgp-adaptive",
-                  sensitivities=True, learned_dynamics="linearized"),
-    _ssgp_variant("linearized-guarded", "linearized, guarded",
-                  "ssgp-mpc-linearized-adaptive whose residual is switched off while it "
-                  "predicts the newest samples worse than the nominal model "
-                  "(online_ssgp(..., nominal_fallback=NominalFallback()))",
-                  learner="ssgp-guarded", sensitivities=True, learned_dynamics="linearized"),
-    _ssgp_variant("linearized-saturated", "linearized, saturated",
-                  "ssgp-mpc-linearized-guarded whose learner saturates its standardized inputs "
-                  "at INPUT_SATURATION standard deviations (online_ssgp(..., "
-                  "input_saturation=INPUT_SATURATION)): plans far outside the initial data "
-                  "meet a bounded residual, not an extrapolated slope",
-                  learner="ssgp-saturated", sensitivities=True, learned_dynamics="linearized"),
-    _ssgp_variant("linearized-parametric", "linearized, parametric",
-                  "ssgp-mpc-linearized-saturated whose linear features are on the parameter "
-                  "sensitivities only (online_ssgp(..., linear_features=<their columns>)): the "
-                  "residual's parametric part dp' S(x, u) without linear terms in the raw "
-                  "states and controls, which extrapolate as a drift the physics lacks",
-                  learner="ssgp-parametric", sensitivities=True, learned_dynamics="linearized"),
-])
-"""Variants of ``ssgp-mpc`` whose residual has an explicit parametric part (issue: online
-learning across the envelope), compared by the ``robustness`` preset."""
-
-
-def _rti(base: str, label: str, description: str, learner: str | None = None,
-         oracle: bool = False, **settings: Any) -> tuple[str, ControllerRecipe]:
-    name = f"{base}-mpc-rti"
-    return name, ControllerRecipe(
-        name, f"{label} MPC, RTI", "mpc", description, learner=learner, oracle=oracle,
-        learn_online=learner is not None, settings=(("scheme", "rti"), *settings.items()))
-
-
-RTI_VARIANTS: dict[str, ControllerRecipe] = dict([
-    _rti("nominal", "nominal", "nominal-mpc with a real-time iteration (scheme='rti': one "
-         "Gauss-Newton SQP step per period after a converged cold start)"),
-    _rti("oracle", "oracle", "oracle-mpc with a real-time iteration (scheme='rti')",
-         oracle=True),
-    _rti("ssgp", "SSGP", "ssgp-mpc with a real-time iteration (scheme='rti'), the GP entering "
-         "the QP as the system's registered rti_learned_dynamics (PlanningDefaults: linearized "
-         "per node at the shifted plan; the quadrotor: on the nominal Jacobian pattern)",
-         learner="ssgp"),
-])
-
-
-def _ssgp_rti(suffix: str, label: str, description: str, learner: str = "ssgp",
-              **settings: Any) -> tuple[str, ControllerRecipe]:
-    """``ssgp-mpc-rti-<suffix>``: the one-call SSGP RTI with another learned term or learner."""
-    name = f"ssgp-mpc-rti-{suffix}"
-    return name, ControllerRecipe(name, f"SSGP MPC, RTI {label}", "mpc", description,
-                                  learner=learner, learn_online=True,
-                                  settings=(("scheme", "rti"), *settings.items()))
-
-
-RTI_VARIANTS.update([
-    _ssgp_rti("linearized", "linearized",
-              "ssgp-mpc-rti with the GP linearized per node at the shifted plan on every system "
-              "(learned_dynamics='linearized': its full Jacobian in the QP)",
-              learned_dynamics="linearized"),
-    _ssgp_rti("zero-order", "zero-order",
-              "ssgp-mpc-rti with the GP's value frozen per node (learned_dynamics='zero-order': "
-              "the nominal QP structure, the gradient corrected with the previous multipliers)",
-              learned_dynamics="zero-order"),
-    _ssgp_rti("pattern", "pattern",
-              "ssgp-mpc-rti with the GP's Jacobian kept only on the nominal model's Jacobian "
-              "pattern (learned_dynamics='linearized-pattern': the nominal QP structure with the "
-              "learned control gains, the dropped derivatives corrected with the previous "
-              "multipliers)", learned_dynamics="linearized-pattern"),
-    _ssgp_rti("parametric", "parametric",
-              "ssgp-mpc-rti whose learner is ssgp-mpc-linearized-parametric's (the parameter "
-              "sensitivities as inputs, linear features on them only, gp_agents.parametric_ssgp)",
-              learner="ssgp-parametric", sensitivities=True),
-])
-for _name in ("nominal-mpc-rti", "oracle-mpc-rti", "ssgp-mpc-rti", "ssgp-mpc-rti-linearized",
-              "ssgp-mpc-rti-zero-order", "ssgp-mpc-rti-pattern", "ssgp-mpc-rti-parametric"):
-    _base = RTI_VARIANTS[_name]
-    RTI_VARIANTS[f"{_name}-split"] = dataclasses.replace(
+for _name in ("ssgp-mpc-rti-linearized", "ssgp-mpc-rti-zero-order", "ssgp-mpc-rti-pattern"):
+    _base = STUDY_VARIANTS[_name]
+    STUDY_VARIANTS[f"{_name}-split"] = dataclasses.replace(
         _base, name=f"{_name}-split", label=f"{_base.label}, split",
-        description=f"{_name} split into a preparation (after the action: learner update, "
-                    "shift with the predicted initial state, expansion, QP data) and a "
-                    "feedback phase (the QP with the measured state; scheme='rti-split')",
+        description=f"{_name} split into a preparation and a feedback phase "
+                    "(scheme='rti-split')",
         settings=tuple((k, "rti-split" if k == "scheme" else v) for k, v in _base.settings))
-"""Real-time-iteration variants (issue: RTI), compared by the ``rti`` preset."""
+"""The study variants (not recipes; earlier studies decided on them): each with its own
+settings."""
 
 
 def learned_term(recipe: ControllerRecipe, system: str) -> str | None:
-    """The ``learned_dynamics`` name ``recipe``'s MPC uses on ``system`` (its own setting, else
+    """The ``term`` name ``recipe``'s MPC uses on ``system`` (its own setting, else
     :func:`gp_agents.mpc.controller.default_learned_dynamics` of its scheme and the system's
-    registration), or None for a recipe with no learner."""
+    tuning), or None for a recipe with no learner."""
     if recipe.learner is None:
         return None
     settings = dict(recipe.settings)
-    if "learned_dynamics" in settings:
-        term = settings["learned_dynamics"]
+    if recipe.recipe is not None:
+        settings.update(recipe_settings(recipe.recipe, recipe.scheme))
+    term = settings.get("term")
+    if term is not None:
         return term if isinstance(term, str) else type(term).__name__
-    return default_learned_dynamics(settings.get("scheme", "converged"),
-                                    gp_envs.SYSTEMS[system].planning)
+    scheme = settings.get("scheme", recipe.scheme)
+    name = scheme if isinstance(scheme, str) else scheme.name
+    return default_learned_dynamics(name, system)
 
-WARM_DUAL_VARIANTS: dict[str, ControllerRecipe] = {
-    f"{base}-mpc-warm-duals": ControllerRecipe(
-        f"{base}-mpc-warm-duals", f"{label} MPC, warm duals", "mpc",
-        f"{base}-mpc whose converged IPOPT solves also start from the previous solve's "
-        "multipliers with IPOPT's warm-start options (warm_start_duals=True): the fastest "
-        "converged reference for the RTI's step-time ratios", oracle=base == "oracle",
-        settings=(("warm_start_duals", True),))
-    for base, label in (("nominal", "nominal"), ("oracle", "oracle"))}
-"""Converged recipes warm-started with the previous multipliers (the ``rti`` preset's second,
-faster converged reference)."""
+
+def _main_and_aliases() -> dict[str, ControllerRecipe]:
+    main = _recipe_controllers()
+    aliases = {old: dataclasses.replace(main[new], name=old, label=label, alias_of=new,
+                                        main=False, description=f"= {new}")
+               for old, (new, label) in ALIASES.items()}
+    return {**main, **aliases}
 
 
 CONTROLLERS: dict[str, ControllerRecipe] = {
-    **_mpc_recipes(),
-    **SPEED_VARIANTS,
-    **SENSITIVITY_VARIANTS,
-    **RTI_VARIANTS,
-    **WARM_DUAL_VARIANTS,
+    **_main_and_aliases(),
     "sac": ControllerRecipe("sac", "SAC", "rl", "shipped stable-baselines3 SAC policy",
-                            algo="sac"),
+                            algo="sac", main=True),
     "ppo": ControllerRecipe("ppo", "PPO", "rl", "shipped stable-baselines3 PPO policy",
-                            algo="ppo"),
-    "tqc": ControllerRecipe("tqc", "TQC", "rl", "shipped sb3-contrib TQC policy", algo="tqc"),
+                            algo="ppo", main=True),
+    "tqc": ControllerRecipe("tqc", "TQC", "rl", "shipped sb3-contrib TQC policy", algo="tqc",
+                            main=True),
+    **STUDY_VARIANTS,
 }
-"""The controller registry: every recipe by name."""
+"""The controller registry: every name (main, aliases, study variants, RL)."""
 RL_ALGORITHMS = tuple(name for name, r in CONTROLLERS.items() if r.family == "rl")
 """The RL recipes (``"sac"``, ``"ppo"``, ``"tqc"``): each loads its shipped policy where one
 exists for the env."""
+RTI_VARIANTS = {name: r for name, r in CONTROLLERS.items() if r.family == "mpc" and (
+    r.scheme != "converged" or dict(r.settings).get("scheme") in ("rti", "rti-split"))}
+"""Every real-time-iteration controller (composed names, aliases, study variants)."""
+SPEED_VARIANTS = {k: v for k, v in STUDY_VARIANTS.items() if k in (
+    "ssgp-mpc-nominal-hessian", "ssgp-mpc-model-inputs", "ssgp-mpc-linearized",
+    "ssgp-mpc-linearized-model-inputs")}
+"""The paper recipe's speed variants (presets ``speed-options`` and ``linearized``)."""
 
 
 class UnknownNameError(ValueError):
@@ -393,25 +367,15 @@ def make_env(env: str, scenario: str, **options: Any) -> gym.Env:
     return gym.make(ENVS[env].env_id, scenario=scenario, **options)
 
 
-class OracleModel:
-    """The oracle recipes' model source: the env's true model (``gp_envs.oracle_model``), the
-    benchmark's to hand in (a class, so that the agent pickles)."""
-
-    def __init__(self, env: gym.Env) -> None:
-        self.env = env
-
-    def __call__(self) -> Any:
-        return gp_envs.oracle_model(self.env)
-
-
 def make_learner(kind: str, parametric_columns: tuple[int, ...] = ()) -> Any:
     """A fresh residual learner of the recipe kind ``"exact"``, ``"ssgp"``, ``"ssgp-linear"``
     (:func:`gp_agents.online_ssgp` with linear features), ``"ssgp-adaptive"`` (linear
     features and a :class:`~gp_agents.learners.ChangeDetector`), ``"ssgp-guarded"`` (those
     and a :class:`~gp_agents.learners.NominalFallback`), ``"ssgp-saturated"`` (those and
     the input saturation :data:`~gp_agents.learners.INPUT_SATURATION`) or
-    ``"ssgp-parametric"`` (:func:`gp_agents.parametric_ssgp` of ``parametric_columns``, the
-    input's parameter sensitivities: the saturated one with linear features on those only)."""
+    ``"ssgp-parametric"`` (:func:`gp_agents.parametric_ssgp`: the saturated one with linear
+    features on the parameter sensitivities only, ``parametric_columns`` or, if empty, those
+    of the MPC it is given to)."""
     from gp_agents import online_ssgp, parametric_ssgp
     from gp_agents.learners import INPUT_SATURATION, ChangeDetector, ExactGP, NominalFallback
 
@@ -430,7 +394,7 @@ def make_learner(kind: str, parametric_columns: tuple[int, ...] = ()) -> Any:
         return online_ssgp(linear_features=True, change_detector=ChangeDetector(),
                            nominal_fallback=NominalFallback(), input_saturation=INPUT_SATURATION)
     if kind == "ssgp-parametric":
-        return parametric_ssgp(parametric_columns)
+        return parametric_ssgp(parametric_columns or None)
     raise ValueError(f"unknown learner kind {kind!r}")
 
 
@@ -438,12 +402,12 @@ def build_controller(name: str, env: gym.Env, env_name: str, seed: int,
                      n_init: int = N_INITIAL_POINTS, *, data_env: gym.Env | None = None,
                      settings: dict[str, Any] | None = None,
                      options: dict[str, Any] | None = None,
-                     learner: Any | None = None) -> BuiltController:
+                     learner: Any | None = None, same_system: bool = False) -> BuiltController:
     """Build controller ``name`` for ``env`` and reset ``env`` with ``seed``.
 
     Learning recipes first collect ``n_init`` transitions with
-    :func:`gp_agents.collect_initial_data` (seeded with ``seed``; it resets the env itself),
-    then reset the env with ``seed``, build the agent on the episode's model and pretrain it.
+    :func:`gp_agents.collect_initial_data` on ``data_env`` (seeded with ``seed``), then reset
+    the env with ``seed``, build the agent on the episode's model and pretrain it.
 
     Args:
         name: controller name (:data:`CONTROLLERS`).
@@ -452,10 +416,15 @@ def build_controller(name: str, env: gym.Env, env_name: str, seed: int,
         seed: the trial's seed.
         n_init: initial transitions for the learning recipes.
         data_env: the env the initial data are collected on (default ``env``).
-        settings: extra :class:`gp_agents.PseudospectralMPC` settings (MPC recipes only).
+        settings: constructor settings of :class:`gp_agents.PseudospectralMPC` that replace
+            the recipe's (MPC recipes only).
         options: ``env.reset`` options of the episode (e.g. a start state).
         learner: an unfitted learner used instead of the recipe's (learning recipes only; e.g.
             ``online_ssgp(r)`` for another rank).
+        same_system: collect the data as a user does, on the system ``env.reset(seed=seed)``
+            gives (``collect_initial_data``'s default); False (the presets): each data episode
+            a reset of its own with seed ``seed * 1000 + k``, the data env already being the
+            system the trial's cell asks for.
 
     Raises:
         UnknownNameError: unknown controller name.
@@ -471,32 +440,25 @@ def build_controller(name: str, env: gym.Env, env_name: str, seed: int,
         raise ValueError(f"controller {name!r} learns nothing: it takes no learner")
     data = None
     if recipe.learner is not None:
-        data = collect_initial_data(data_env or env, n_init, seed=seed)
+        data = collect_initial_data(data_env or env, n_init, seed=seed, same_system=same_system)
     obs, _ = env.reset(seed=seed, options=options)
-    if learner is None and recipe.learner is not None:
-        learner = make_learner(recipe.learner, _parametric_columns(recipe, env, settings))
-    source = OracleModel(env) if recipe.oracle else None
-    agent = PseudospectralMPC.from_env(env, learner, model_source=source, mode=recipe.mode,
-                                       learn_online=recipe.learn_online,
-                                       **{**dict(recipe.settings), **(settings or {})})
+    overrides = dict(settings or {})
+    if learner is not None:
+        overrides["learner"] = learner
+    if recipe.recipe is not None:
+        agent = make_mpc(env, recipe.recipe, scheme=recipe.scheme, **overrides)
+    else:
+        own = {**dict(recipe.settings), **overrides}
+        if "learner" not in own and recipe.learner is not None:
+            own["learner"] = make_learner(recipe.learner)
+        agent = PseudospectralMPC.from_env(
+            env, own.pop("learner", None),
+            model_source=OracleModel(env) if recipe.oracle else None, **own)
     if data is not None:
         agent.pretrain(data)
     agent.reset()
     return BuiltController(agent, obs, len(data) if data is not None else 0,
                            {"horizon_s": agent.horizon, "mesh": agent.mesh.describe()})
-
-
-def _parametric_columns(recipe: ControllerRecipe, env: gym.Env,
-                        settings: dict[str, Any] | None) -> tuple[int, ...]:
-    """The learner-input columns of the parameter sensitivities of ``recipe``'s MPC on
-    ``env`` (empty if it has none): the residual its agent will build."""
-    from gp_agents.residual import ResidualModel
-
-    s = {**dict(recipe.settings), **(settings or {})}
-    if not s.get("sensitivities", False):
-        return ()
-    return ResidualModel(env.unwrapped.nominal_model, s.get("uncertain_indices"),
-                         s.get("input_indices"), sensitivities=True).sensitivity_columns
 
 
 def _build_rl(recipe: ControllerRecipe, env: gym.Env, env_name: str, seed: int,

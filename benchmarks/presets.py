@@ -22,6 +22,8 @@ from benchmarks.controllers import (
 )
 from benchmarks.trial import Cell, TrialSpec
 
+DEFAULT_CELL = Cell()
+"""The scenario as registered."""
 MPC_BASES = ("nominal", "gp", "ssgp", "oracle")
 """The four model variants of the paper's tables, in the tables' order."""
 MPC_RECEDING = tuple(f"{b}-mpc" for b in MPC_BASES)
@@ -62,25 +64,33 @@ class Preset:
 
 
 def episodes(controllers: Iterable[str], envs: Iterable[tuple[str, str]], seeds: Iterable[int],
-             max_steps: int | None = None, *, interleave: bool = False
-             ) -> tuple[TrialSpec, ...]:
-    """Episode trials for every controller x (env, scenario) x seed.
+             max_steps: int | None = None, *, interleave: bool = False, cell: Cell = DEFAULT_CELL,
+             n_init: int = N_INITIAL_POINTS) -> tuple[TrialSpec, ...]:
+    """Episode trials for every controller x (env, scenario) x seed (in ``cell``, with
+    ``n_init`` initial samples for the learning recipes).
 
     ``interleave``: seed-major order (every controller's episode of a seed, then the next
     seed), so that trials run in order meet a change of the machine's load alike: for
     experiments whose step times are compared as ratios between controllers."""
     envs, seeds, controllers = list(envs), list(seeds), list(controllers)
+
+    def spec(env: str, scenario: str, c: str, s: int) -> TrialSpec:
+        return TrialSpec("episode", env, scenario, c, s, max_steps=max_steps, n_init=n_init,
+                         cell=cell)
+
     if interleave:
-        return tuple(TrialSpec("episode", env, scenario, c, s, max_steps=max_steps)
+        return tuple(spec(env, scenario, c, s)
                      for env, scenario in envs for s in seeds for c in controllers)
-    return tuple(TrialSpec("episode", env, scenario, c, s, max_steps=max_steps)
+    return tuple(spec(env, scenario, c, s)
                  for env, scenario in envs for c in controllers for s in seeds)
 
 
 def custom_experiment(controllers: Sequence[str], envs: Sequence[str],
                       scenarios: Sequence[str] | None, seeds: Sequence[int],
-                      max_steps: int | None = None) -> Experiment:
-    """An experiment of a user-chosen grid (``--controllers/--envs/--scenarios/--seeds``).
+                      max_steps: int | None = None, cell: Cell = DEFAULT_CELL,
+                      n_init: int = N_INITIAL_POINTS) -> Experiment:
+    """An experiment of a user-chosen grid (``--controllers/--envs/--scenarios/--seeds``, in
+    the cell of ``--randomize/--data/--noise/--start`` with ``--n-init`` initial samples).
 
     ``scenarios=None`` runs each env's default scenario; given scenarios apply to the envs
     that have them (an env with none of them is an error).
@@ -106,7 +116,8 @@ def custom_experiment(controllers: Sequence[str], envs: Sequence[str],
     return Experiment(
         "custom", "Custom run", "A user-chosen grid of controllers x envs x scenarios x seeds "
         "(the controllers interleaved seed by seed).",
-        episodes(controllers, pairs, seeds, max_steps, interleave=True),
+        episodes(controllers, pairs, seeds, max_steps, interleave=True, cell=cell,
+                 n_init=n_init),
         ("summary", "trajectories", "paths", "step_times"))
 
 
@@ -444,9 +455,35 @@ def quick() -> Experiment:
                 "update_time", "peers"))
 
 
+RECOMMENDED_SEEDS = tuple(range(400, 420))
+"""Evaluation seeds of the recommended preset: used by no other preset and for no tuning."""
+
+
+def recommended(seeds: Sequence[int] = RECOMMENDED_SEEDS,
+                dubins_seeds: Sequence[int] = tuple(range(400, 450)),
+                randomize: float = 0.1) -> Experiment:
+    """The recommended recipe as a user runs it: ``make_mpc(env)`` pretrained on
+    ``collect_initial_data(env, 200, seed=s)`` on a randomized truth, against the oracle."""
+    cell = Cell(randomize=randomize, data="own")
+    controllers = ("robust-mpc", "oracle-mpc")
+    specs = episodes(controllers, [("cartpole", "online"), ("quadrotor", "online")], seeds,
+                     interleave=True, cell=cell)
+    specs += episodes(controllers, [("dubins", "paper")], dubins_seeds, interleave=True,
+                      cell=cell)
+    return Experiment(
+        "recommended", "The recommended recipe as a user runs it",
+        f"`make_mpc(env)` (the robust recipe) pretrained on `collect_initial_data(env, 200, "
+        f"seed=s)` (the system `env.reset(seed=s)` gives) against the oracle MPC, on a "
+        f"randomized truth (each true parameter x (1 + U(-{randomize:g}, {randomize:g})) per "
+        f"seed), evaluation seeds no preset or tuning used.",
+        specs, ("summary", "trajectories", "paths"))
+
+
 PRESETS: dict[str, Preset] = {
     "quick": Preset("quick", "a couple of minutes: the main controllers on every env",
                     (quick(),)),
+    "recommended": Preset("recommended", "make_mpc(env) as a user runs it, randomized truth, "
+                          "against the oracle", (recommended(),)),
     "paper-tables": Preset("paper-tables", "the paper's tables 1 and 2, seeds 0-9",
                            (paper_tables(),)),
     "dubins": Preset("dubins", "Dubins obstacle avoidance, 50 episodes", (dubins(),)),

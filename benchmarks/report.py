@@ -48,14 +48,15 @@ from benchmarks.presets import MPC_BASES, Experiment, Preset
 from benchmarks.runner import load_arrays, load_record, trial_path
 from benchmarks.styles import EPISODIC, RTI, WARM_DUALS, Style, axis_label, style
 from benchmarks.trial import STATUS_OK, STATUS_UNAVAILABLE, Cell, TrialSpec
+from gp_agents.mpc.diagnostics import DEGRADED_FRACTION
 
 METRIC_COLUMNS = (
     "key", "env", "scenario", "cell", "controller", "family", "mode", "seed", "status",
     "success", "success_held", "at_goal_final", "time_to_success_s", "cost", "final_distance",
     "final_position_error", "recovery_s", "violations", "termination", "steps", "data_steps",
     "act_median_ms", "act_p95_ms", "act_max_ms", "solver_failures", "fallbacks", "solves",
-    "capped_solves", "learner_changes", "plan_plant_defect", "build_s", "episode_s", "max_steps",
-    "message",
+    "capped_solves", "learner_changes", "rti_rejected", "degraded", "plan_plant_defect",
+    "build_s", "episode_s", "max_steps", "message",
 )
 TIME_COLUMNS = ("act_median_ms", "act_p95_ms", "act_max_ms", "build_s", "episode_s")
 """The columns of ``metrics.csv`` that are wall-clock times: the only ones a run's machine load
@@ -443,6 +444,17 @@ def section_summary(ctx: Context, exp: Experiment) -> list[str]:
                       f"{t.record['message']}" for t in unavailable if t.record})
     if reasons:
         lines += ["", "Not available (recorded, not run):", ""] + [f"- {r}" for r in reasons]
+    degraded = [t for t in ctx.of(exp) if t.status == STATUS_OK and t.metrics.get("degraded")]
+    if degraded:
+        lines += ["", f"{len(degraded)} trial(s) degraded: the MPC took a fallback path (RTI "
+                  f"step rejected, solve failed or capped, older plan kept) in more than "
+                  f"{DEGRADED_FRACTION:.0%} of an episode's replans (`degraded` in "
+                  f"`metrics.csv`; the agent warned with `ControllerDegradedWarning`):", ""]
+        lines += [f"- `{t.spec.key}`: RTI steps rejected {t.metrics.get('rti_rejected')}, "
+                  f"solver failures {t.metrics.get('solver_failures')}"
+                  for t in degraded[:10]]
+        if len(degraded) > 10:
+            lines.append(f"- ... and {len(degraded) - 10} more")
     errors = [t for t in ctx.of(exp) if t.status == "error"]
     if errors:
         lines += ["", f"{len(errors)} trial(s) failed with an exception (see `metrics.csv`):", ""]

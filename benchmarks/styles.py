@@ -1,7 +1,8 @@
 """How every controller and every state or control looks in the report's figures.
 
 :data:`STYLES` is the one table mapping each recipe of :data:`benchmarks.controllers.CONTROLLERS`
-to a fixed :class:`Style`, used by every figure of :mod:`benchmarks.report`, so that a controller
+(an alias is drawn as the controller it stands for) to a fixed :class:`Style`, used by every
+figure of :mod:`benchmarks.report`, so that a controller
 has the same colour, line style and marker everywhere. The conventions:
 
 - the colour names the *model* a controller plans with (nominal, oracle, offline GP, SSGP and
@@ -22,6 +23,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from typing import Any
+
+from benchmarks.controllers import ALIASES
 
 RECEDING, EPISODIC, RTI, WARM_DUALS = "-", "--", "-.", ":"
 """Line styles of the three schemes."""
@@ -128,6 +131,8 @@ STYLES: dict[str, Style] = {
     "tqc": Style(_TQC, RECEDING, "$T$"),
 }
 """The style of every controller recipe, by recipe name (see the module docstring)."""
+STYLES = {ALIASES[name][0] if name in ALIASES else name: value for name, value in STYLES.items()}
+# the older names (benchmarks.controllers.ALIASES) are drawn as the controller they stand for
 
 
 _ORDER = {s.marker: i for i, s in enumerate(STYLES.values())}
@@ -141,7 +146,7 @@ def style(controller: str) -> Style:
         KeyError: a recipe without a style in :data:`STYLES` (add one there).
     """
     try:
-        return STYLES[controller]
+        return STYLES[ALIASES[controller][0] if controller in ALIASES else controller]
     except KeyError:
         raise KeyError(f"controller {controller!r} has no plot style: add it to "
                        "benchmarks.styles.STYLES") from None

@@ -37,6 +37,7 @@ from benchmarks.controllers import (
     make_env,
 )
 from gp_agents.agent import rollout
+from gp_agents.mpc import Constraints
 from gp_envs.systems import get_system
 
 DISTRIBUTION = "gp-pseudospectral-mpc"
@@ -45,6 +46,12 @@ DISTRIBUTION = "gp-pseudospectral-mpc"
 STATUS_OK = "ok"
 STATUS_ERROR = "error"
 STATUS_UNAVAILABLE = "unavailable"
+
+
+DATA_SOURCES = ("same", "diff", "own")
+"""Values of :attr:`Cell.data`."""
+STARTS = ("default", "perturbed")
+"""Values of :attr:`Cell.start`."""
 
 
 @dataclass(frozen=True, order=True)
@@ -58,6 +65,9 @@ class Cell:
             randomized: ``"same"``, the system then controlled (the episode's truth draw);
             ``"diff"``, an independent draw of the same spread (the system changed between
             data collection and control). Without randomization both are the episode's truth.
+            ``"own"``: as a user collects them, ``gp_agents.collect_initial_data(env, n,
+            seed=seed)`` on the trial's own env (the system ``env.reset(seed=seed)`` gives; in
+            a time-varying scenario the data episodes see its changes).
         noise: the env's ``observation_noise``: standard deviation added to every observed
             component, in its unit (m, rad, m/s, rad/s), during data collection and control.
         start: ``"default"`` (the env's reset) or ``"perturbed"`` (the reset state plus a
@@ -73,10 +83,10 @@ class Cell:
     kappa: float = 0.0
 
     def __post_init__(self) -> None:
-        if self.data not in ("same", "diff"):
-            raise ValueError(f"Cell.data must be 'same' or 'diff', got {self.data!r}")
-        if self.start not in ("default", "perturbed"):
-            raise ValueError(f"Cell.start must be 'default' or 'perturbed', got {self.start!r}")
+        if self.data not in DATA_SOURCES:
+            raise ValueError(f"Cell.data must be one of {list(DATA_SOURCES)}, got {self.data!r}")
+        if self.start not in STARTS:
+            raise ValueError(f"Cell.start must be one of {list(STARTS)}, got {self.start!r}")
         for name in ("randomize", "noise", "kappa"):
             value = getattr(self, name)
             if not (np.isfinite(value) and value >= 0):
@@ -186,8 +196,10 @@ def build_episode(spec: TrialSpec) -> tuple[Any, BuiltController, dict[str, Any]
                    observation_noise=cell.noise)
     options = _start_options(env, spec)
     built = build_controller(spec.controller, env, spec.env, spec.seed, spec.n_init,
-                             data_env=_data_env(env, spec),
-                             settings={"uncertainty_radius": cell.kappa} if cell.kappa else None,
+                             data_env=None if cell.data == "own" else _data_env(env, spec),
+                             same_system=cell.data == "own",
+                             settings={"constraints": Constraints(uncertainty_radius=cell.kappa)}
+                             if cell.kappa else None,
                              options=options)
     return env, built, options
 
@@ -259,6 +271,9 @@ def run_episode(spec: TrialSpec) -> dict[str, Any]:
         # changes the learner's ChangeDetector declared (adaptive recipes; NaN without one)
         "learner_changes": (int(agent.learner.n_changes_) if is_mpc and getattr(
             getattr(agent, "learner", None), "detector_", None) is not None else float("nan")),
+        # the episode's fallback paths (PseudospectralMPC.health; degraded: > 10% of replans)
+        "rti_rejected": int(agent.health()["rti_rejected"]) if is_mpc else float("nan"),
+        "degraded": bool(agent.health()["degraded"]) if is_mpc else False,
         "build_s": build_s,
         "episode_s": episode_s,
         **{f"recipe_{k}": v for k, v in built.info.items()},

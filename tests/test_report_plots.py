@@ -74,22 +74,36 @@ def _control_period_lines(ax: Any) -> list[Line2D]:
 
 
 # ----------------------------------------------------------------------------- tables
+def _scheme(recipe) -> str:
+    scheme = dict(recipe.settings).get("scheme", recipe.scheme)
+    return scheme if isinstance(scheme, str) else scheme.name
+
+
+def _warm(recipe) -> bool:
+    scheme = dict(recipe.settings).get("scheme")
+    return bool(getattr(scheme, "warm_start_duals", False))
+
+
 def test_every_recipe_has_one_fixed_distinct_style() -> None:
-    assert set(STYLES) == set(CONTROLLERS), "every recipe, and only recipes, have a style"
+    main = {c for c, r in CONTROLLERS.items() if r.alias_of is None}
+    assert set(STYLES) == main, "every recipe, and only recipes, have a style"
+    for c, r in CONTROLLERS.items():
+        if r.alias_of is not None:  # an older name looks like what it stands for
+            assert style(c) == style(r.alias_of)
     triples = [(s.color, s.linestyle, s.marker) for s in STYLES.values()]
     assert len(set(triples)) == len(triples)
     markers = [s.marker for s in STYLES.values()]
     assert len(set(markers)) == len(markers)  # points-only plots tell them apart too
     # receding-horizon recipes of different models never share a colour
     receding = [c for c, r in CONTROLLERS.items()
-                if r.mode == "receding" and dict(r.settings).get("scheme", "converged")
-                == "converged" and ("warm_start_duals", True) not in r.settings]
+                if r.mode == "receding" and _scheme(r) == "converged" and r.alias_of is None
+                and not _warm(r)]
     colours = [style(c).color for c in receding]
     assert len(set(colours)) == len(colours)
     assert style("ssgp-mpc").color != style("ssgp-mpc-linearized").color
     for name, recipe in CONTROLLERS.items():
-        expected = (RTI if dict(recipe.settings).get("scheme") in ("rti", "rti-split")
-                    else WARM_DUALS if ("warm_start_duals", True) in recipe.settings
+        expected = (RTI if _scheme(recipe) in ("rti", "rti-split")
+                    else WARM_DUALS if _warm(recipe)
                     else EPISODIC if recipe.mode == "episodic" else RECEDING)
         assert style(name).linestyle == expected, name
         if recipe.mode == "episodic":  # same model, same colour
