@@ -338,6 +338,14 @@ def machine() -> dict[str, str]:
             "OMP_NUM_THREADS": os.environ.get("OMP_NUM_THREADS", "")}
 
 
+def load_average() -> str:
+    """The 1-, 5- and 15-minute load averages (other work on the machine), or "unknown"."""
+    try:
+        return " ".join(Path("/proc/loadavg").read_text().split()[:3])
+    except OSError:
+        return "unknown"
+
+
 def our_versions() -> dict[str, str]:
     """Python, numpy, CasADi and the project's commit, as installed in the project's venv."""
     import casadi
@@ -435,7 +443,7 @@ Different:
 
 def write_report(out: Path, command: str, spec: dict[str, Any], worker: AcadosWorker,
                  rows: list[dict[str, Any]], ours_versions: dict[str, str], qp_solver: str,
-                 seconds: float) -> None:
+                 seconds: float, loads: tuple[str, str]) -> None:
     """report.md and summary.csv from the measured rows (one per block and controller)."""
     out.mkdir(parents=True, exist_ok=True)
     with (out / "summary.csv").open("w", newline="") as fh:
@@ -477,7 +485,11 @@ def write_report(out: Path, command: str, spec: dict[str, Any], worker: AcadosWo
         "# acados as a measured peer of the pseudospectral RTI (quadrotor, nominal model)", "",
         f"Command: `{command}` ({seconds / 60:.1f} min, solver builds included)", "",
         f"Machine: {m['nproc']} CPU(s) visible, {m['cpu']}; {m['os']}; "
-        f"OMP_NUM_THREADS={m['OMP_NUM_THREADS']} on both sides.", "",
+        f"OMP_NUM_THREADS={m['OMP_NUM_THREADS']} on both sides. Load average (1, 5, 15 min) "
+        f"at the start {loads[0]}, at the end {loads[1]}: the machine is shared, so a few "
+        f"steps of every controller are slowed by other work (the p90 column); the "
+        f"interleaved blocks expose both sides to it alike and the medians are robust to it.",
+        "",
         "Versions: ours " + ", ".join(f"{k} {v}" for k, v in ours_versions.items())
         + "; acados side " + ", ".join(f"{k} {v}" for k, v in worker.versions.items())
         + " (its own virtual environment).", "",
@@ -497,7 +509,7 @@ def write_report(out: Path, command: str, spec: dict[str, Any], worker: AcadosWo
             for label, opts in worker.settings.items()) + ".", "",
         "## Per-step wall time and closed-loop outcome", "",
         *_table(["controller", "step median (ms)", "latency median (ms)",
-                 "step p90 (ms)", "success", "worst final position error (m)",
+                 "step p90 (ms, median over blocks)", "success", "worst final position error (m)",
                  "closed-loop cost (median)", "fallbacks / non-zero QP status"], summary_rows),
         "",
         "*step*: the whole per-step call; *latency*: the step less its preparation (split "
@@ -535,6 +547,7 @@ def main(argv: list[str] | None = None) -> int:
     command = "OMP_NUM_THREADS=1 python -m benchmarks.studies.acados_peer " + shlex.join(
         sys.argv[1:] if argv is None else argv)
     started = time.perf_counter()
+    load_start = load_average()
 
     import gymnasium as gym
 
@@ -601,7 +614,7 @@ def main(argv: list[str] | None = None) -> int:
     rows.sort(key=lambda r: (r["block"], order.index(r["controller"])))
     write_report(args.out, command, spec, worker, rows, our_versions(), first.qp_solver
                  if isinstance(first.qp_solver, str) else type(first.qp_solver).__name__,
-                 time.perf_counter() - started)
+                 time.perf_counter() - started, (load_start, load_average()))
     print(f"wrote {args.out / 'report.md'}")
     return 0
 
