@@ -78,6 +78,8 @@ class Episode:
     actions: np.ndarray
     terminated: str | None
     fallbacks: int = 0
+    internal_time: np.ndarray | None = None
+    """acados only: the solver's own ``time_tot`` per step (both phases of a split step)."""
 
     @property
     def latency(self) -> np.ndarray:
@@ -260,7 +262,8 @@ class AcadosWorker:
             raise AcadosUnavailableError(f"the acados worker failed: {out.get('error')}")
         return Episode(np.array(out["act_time"]), np.array(out["preparation_time"]),
                        np.array(out["states"]), np.array(out["actions"]), out["terminated"],
-                       fallbacks=int(sum(s != 0 for s in out["status"][1:])))
+                       fallbacks=int(sum(s != 0 for s in out["status"][1:])),
+                       internal_time=np.array(out["internal_time"]))
 
     def close(self) -> None:
         """Ask the worker to quit and wait for it."""
@@ -465,7 +468,9 @@ def write_report(out: Path, command: str, spec: dict[str, Any], worker: AcadosWo
             f"{sum(r['success'] for r in rs)}/{len(rs)}",
             f"{max(r['final_position_error'] for r in rs):.4f}",
             f"{np.median([r['cost'] for r in rs]):.3f}",
-            sum(r["fallbacks"] for r in rs)])
+            sum(r["fallbacks"] for r in rs),
+            "-" if np.isnan(rs[0]["solver_internal_ms"])
+            else f"{np.median([r['solver_internal_ms'] for r in rs]):.3f}"])
 
     by = {(r["block"], r["controller"]): r for r in rows}
     pairs = [(a, b, key) for a, b, key in (
@@ -510,13 +515,16 @@ def write_report(out: Path, command: str, spec: dict[str, Any], worker: AcadosWo
         "## Per-step wall time and closed-loop outcome", "",
         *_table(["controller", "step median (ms)", "latency median (ms)",
                  "step p90 (ms, median over blocks)", "success", "worst final position error (m)",
-                 "closed-loop cost (median)", "fallbacks / non-zero QP status"], summary_rows),
+                 "closed-loop cost (median)", "fallbacks / non-zero QP status",
+                 "acados time_tot median (ms)"], summary_rows),
         "",
         "*step*: the whole per-step call; *latency*: the step less its preparation (split "
         "schemes: measured state in, action out; one-call schemes: the whole step). *success*: "
         "the env's rule (position within 0.05 m on every axis for the last 1 s, no "
         "termination). *fallbacks*: ours, RTI steps replaced by a converged solve; acados, steps "
-        "whose QP returned a non-zero status (after the first).", "",
+        "whose QP returned a non-zero status (after the first). *acados time_tot*: the solver's "
+        "own timer (the C solve alone, both phases for split); the step less this is acados' "
+        "Python interface (setting the state, reading the control).", "",
         "## Ratios ours / acados per block", "",
         *_table(["block", "seed"] + [f"{x} / {y} ({'step' if k == 'act_ms' else 'latency'})"
                                      for x, y, k in pairs], ratio_rows), "",
@@ -600,6 +608,9 @@ def main(argv: list[str] | None = None) -> int:
                              "act_ms": step_median(ep.act_time),
                              "latency_ms": step_median(ep.latency),
                              "act_p90_ms": float(np.percentile(ep.act_time[1:], 90) * 1e3),
+                             "solver_internal_ms": (step_median(ep.internal_time)
+                                                    if ep.internal_time is not None
+                                                    else float("nan")),
                              **outcome(ep, spec, task)})
             print(f"block {block}: " + ", ".join(
                 f"{r['controller']} {r['act_ms']:.3f}/{r['latency_ms']:.3f} ms"
