@@ -211,9 +211,9 @@ def initial_data_policy(model: ControlModel, rng: np.random.Generator) -> Policy
 SYSTEM = register_system(System(
     name="pilco_cartpole", env_id="gp_envs/PilcoCartPole-v0",
     entry_point="gp_envs.pilco_cartpole:PilcoCartPoleEnv", max_episode_steps=40,
-    # horizon measured with the nominal MPC (n_nodes 16), env seeds 0-9 (0-3 for the first
-    # three): 2.5 s succeeds on 10/10 (final stretch at the goal from 1.1-1.7 s); 1.5 s on 2/4,
-    # 2.0 s on 2/4, 3.0 s on 3/4; 2.0 s or 2.5 s with two intervals on 9/10
+    # horizon measured with the nominal MPC (n_nodes 16), env seeds 0-9: 2.5 s succeeds on
+    # 10/10 (final stretch at the goal from 1.1-1.7 s); 1.5 s on 2/4 (seeds 0-3), 2.0 s on 2/3
+    # (seeds 0-2), 3.0 s on 3/4 (seeds 0-3); 2.0 s or 2.5 s with two intervals on 9/10
     planning=PlanningDefaults(horizon=2.5, n_nodes=16, n_intervals=1),
     data_policy=initial_data_policy))
 """PILCO's cart pole's registration (:mod:`gp_envs.systems`)."""
