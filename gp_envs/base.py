@@ -467,14 +467,18 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
     def _info(self, obs: np.ndarray, violation: str | None, reason: str | None, clipped: bool
               ) -> dict[str, Any]:
         task = self.nominal_model.task
-        checked = np.isfinite(task.goal_tolerance)
         hold_steps = round(task.hold_time / self.DT)
         success = self._held >= max(hold_steps, 1)
+        since = round((self._steps - self._held + 1) * self.DT, 9) if self._held else None
         return {
             "success": bool(success),
             "is_success": bool(success),  # the key stable-baselines3's callbacks read
             "at_goal": bool(task.at_goal(obs)),
-            "distance_to_goal": float(np.linalg.norm(task.error(obs)[checked])),
+            # time (s) of the first state of the current unbroken stretch at the goal (None:
+            # not at the goal now); with "success" at an episode's end: when the held final
+            # stretch began
+            "at_goal_since": since,
+            "distance_to_goal": task.goal_distance(obs),
             "constraint_violation": violation is not None,
             "violation": violation,
             "termination_reason": reason,

@@ -152,6 +152,12 @@ class Task:
         """True when every component is within ``goal_tolerance`` of the goal (errors wrapped)."""
         return bool(np.all(np.abs(self.error(x)) <= self.goal_tolerance))
 
+    def goal_distance(self, x: np.ndarray) -> float:
+        """Distance of state ``x`` (n,) to the goal that :meth:`at_goal` judges: the Euclidean
+        norm of the error's checked components (finite ``goal_tolerance``), in their units."""
+        checked = np.isfinite(self.goal_tolerance)
+        return float(np.linalg.norm(self.error(x)[checked]))
+
 
 @dataclass(frozen=True)
 class ControlModel:

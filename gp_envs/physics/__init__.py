@@ -8,7 +8,7 @@ The envs simulate the true plant with it (numeric, through compiled CasADi funct
 the same function with nominal parameters to controllers (symbolic), see :mod:`gp_envs.model`.
 """
 
-from gp_envs.physics import cartpole, dubins, pendulum, quadrotor
+from gp_envs.physics import cartpole, dubins, pendulum, pilco_cartpole, quadrotor
 from gp_envs.physics.ranges import ParamRange
 
-__all__ = ["ParamRange", "cartpole", "dubins", "pendulum", "quadrotor"]
+__all__ = ["ParamRange", "cartpole", "dubins", "pendulum", "pilco_cartpole", "quadrotor"]
