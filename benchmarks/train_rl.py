@@ -67,6 +67,7 @@ import gymnasium as gym
 import numpy as np
 import torch
 from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.vec_env import VecNormalize
 
@@ -252,6 +253,18 @@ def write_curve(path: Path, rows: list[dict[str, float]]) -> None:
     tmp.replace(path)
 
 
+def quiet_logger(model: BaseAlgorithm) -> BaseAlgorithm:
+    """Give ``model`` a logger without outputs; returns ``model``.
+
+    Without a logger of its own, every ``model.learn`` call configures SB3's default one, which
+    creates an empty folder ``SB3-<date-time>`` in the system temp directory even when it writes
+    nothing (``verbose=0``): one per training chunk. The learning curve is this script's own
+    (``learning_curve.csv``). A loaded model needs it again (SB3 does not save the logger).
+    """
+    model.set_logger(Logger(folder=None, output_formats=[]))
+    return model
+
+
 # --------------------------------------------------------------------------- checkpoints
 def rollout_unit(model: BaseAlgorithm) -> int:
     """Env steps one ``learn`` iteration advances by (training runs in whole units)."""
@@ -339,7 +352,7 @@ def restore_checkpoint(path: Path, config: dict[str, Any]) -> tuple[BaseAlgorith
         model.load_replay_buffer(path / "replay_buffer.pkl")
     inner._reset_seeds()  # load() re-seeded the VecEnv's next reset; it must not apply
     _set_rng_state(model, state["rng"])
-    return model, venv
+    return quiet_logger(model), venv
 
 
 # --------------------------------------------------------------------------- training
@@ -476,8 +489,8 @@ def train(env: str, scenario: str, algo: str, steps: int, seed: int, out: Path,
             raise ValueError(f"{out} has a finished model but no checkpoint to extend it from")
         venv = _make_venv(config)
         sb3_kwargs = {k: v for k, v in copy.deepcopy(hp).items() if k not in _ENV_SIDE}
-        model = ALGORITHMS[algo]("MlpPolicy", venv, seed=seed, device="cpu", verbose=0,
-                                 **sb3_kwargs)
+        model = quiet_logger(ALGORITHMS[algo]("MlpPolicy", venv, seed=seed, device="cpu",
+                                              verbose=0, **sb3_kwargs))
         rows, elapsed, eval_time = [], 0.0, 0.0
         sessions = [{"start_utc": f"{dt.datetime.now(dt.UTC):%FT%TZ}", "from_steps": 0}]
     if isinstance(model, OffPolicyAlgorithm) and model.train_freq.unit.value != "step":
