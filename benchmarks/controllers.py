@@ -47,10 +47,13 @@ preparation after the action, feedback on the measurement);
 and their converged references warm-started with the previous multipliers
 (:data:`WARM_DUAL_VARIANTS`): ``nominal-mpc-warm-duals``, ``oracle-mpc-warm-duals``.
 
-RL recipes load the shipped stable-baselines3 policies from ``benchmarks/models/<env>/<algo>/``
-(:class:`gp_agents.rl.RLAgent`; package data, so a non-editable install has them); a missing
-model (or one trained for another scenario) makes the controller *unavailable* for that env,
-which the runner records instead of crashing.
+RL recipes load a stable-baselines3 policy ``<env>/<algo>/`` (:class:`gp_agents.rl.RLAgent`)
+from the first model directory of :func:`rl_model_dirs` that has one: the user's (``gp-bench
+--models DIR``, else ``./benchmarks/models`` under the current directory, where
+``python -m benchmarks.train_rl`` saves), then the shipped ones (:data:`MODELS_DIR`, package
+data, so a non-editable install has them). A missing model (or one trained for another
+scenario) makes the controller *unavailable* for that env, which the runner records instead
+of crashing.
 """
 
 from __future__ import annotations
@@ -64,6 +67,7 @@ from typing import Any
 import gymnasium as gym
 
 import gp_envs
+from benchmarks import USER_MODELS_DIR
 from gp_agents.mpc import GPInNLP
 from gp_agents.mpc.controller import default_learned_dynamics
 from gp_envs.systems import SYSTEMS
@@ -71,6 +75,7 @@ from gp_envs.systems import SYSTEMS
 MODELS_DIR = Path(__file__).resolve().parent / "models"
 """Where the shipped RL policies live: ``<env short name>/<algo>/`` inside the installed package
 (``[tool.setuptools.package-data]`` in ``pyproject.toml`` ships them)."""
+
 
 N_INITIAL_POINTS = 200
 """Initial transitions collected for the learning MPCs (paper: 200 points)."""
@@ -381,8 +386,42 @@ class BuiltController:
     info: dict[str, Any]
 
 
-def rl_model_dir(env: str, algo: str) -> Path:
-    """Directory of the shipped RL model of ``algo`` for benchmark env ``env``."""
+def user_models_dir(models: str | Path | None = None) -> Path | None:
+    """The user's model directory, absolute: ``models`` (``gp-bench --models``) if given, else
+    :data:`benchmarks.USER_MODELS_DIR` under the current directory if it exists; None when
+    there is none or it is the shipped :data:`MODELS_DIR`.
+
+    Raises:
+        FileNotFoundError: ``models`` is given but is not a directory.
+    """
+    if models is not None:
+        path = Path(models).resolve()
+        if not path.is_dir():
+            raise FileNotFoundError(f"--models {models}: no such directory; give the directory "
+                                    "that holds <env>/<algo>/ model folders (python -m "
+                                    "benchmarks.train_rl writes ./benchmarks/models/<env>/<algo>)")
+    else:
+        path = USER_MODELS_DIR.resolve()
+        if not path.is_dir():
+            return None
+    return None if path == MODELS_DIR.resolve() else path
+
+
+def rl_model_dirs(models: str | Path | None = None) -> list[Path]:
+    """The model directories the RL recipes look in, first match wins: the user's
+    (:func:`user_models_dir` of ``models``), then the shipped :data:`MODELS_DIR`."""
+    user = user_models_dir(models)
+    return [MODELS_DIR] if user is None else [user, MODELS_DIR]
+
+
+def rl_model_dir(env: str, algo: str, models: str | Path | None = None) -> Path:
+    """Directory of the RL model of ``algo`` for benchmark env ``env``: ``<dir>/<env>/<algo>``
+    of the first of :func:`rl_model_dirs` that holds a saved agent there (the shipped path if
+    none does)."""
+    for root in rl_model_dirs(models):
+        path = root / env / algo
+        if (path / "metadata.json").is_file() and (path / "model.zip").is_file():
+            return path
     return MODELS_DIR / env / algo
 
 
@@ -438,7 +477,8 @@ def build_controller(name: str, env: gym.Env, env_name: str, seed: int,
                      n_init: int = N_INITIAL_POINTS, *, data_env: gym.Env | None = None,
                      settings: dict[str, Any] | None = None,
                      options: dict[str, Any] | None = None,
-                     learner: Any | None = None) -> BuiltController:
+                     learner: Any | None = None,
+                     models: str | Path | None = None) -> BuiltController:
     """Build controller ``name`` for ``env`` and reset ``env`` with ``seed``.
 
     Learning recipes first collect ``n_init`` transitions with
@@ -456,6 +496,7 @@ def build_controller(name: str, env: gym.Env, env_name: str, seed: int,
         options: ``env.reset`` options of the episode (e.g. a start state).
         learner: an unfitted learner used instead of the recipe's (learning recipes only; e.g.
             ``online_ssgp(r)`` for another rank).
+        models: the user's RL model directory (RL recipes; see :func:`rl_model_dirs`).
 
     Raises:
         UnknownNameError: unknown controller name.
@@ -464,7 +505,7 @@ def build_controller(name: str, env: gym.Env, env_name: str, seed: int,
     check_name("controller", name, list(CONTROLLERS))
     recipe = CONTROLLERS[name]
     if recipe.family == "rl":
-        return _build_rl(recipe, env, env_name, seed, options)
+        return _build_rl(recipe, env, env_name, seed, options, models)
     from gp_agents import PseudospectralMPC, collect_initial_data
 
     if learner is not None and recipe.learner is None:
@@ -500,11 +541,19 @@ def _parametric_columns(recipe: ControllerRecipe, env: gym.Env,
 
 
 def _build_rl(recipe: ControllerRecipe, env: gym.Env, env_name: str, seed: int,
-               options: dict[str, Any] | None = None) -> BuiltController:
-    path = rl_model_dir(env_name, str(recipe.algo))
+              options: dict[str, Any] | None = None,
+              models: str | Path | None = None) -> BuiltController:
+    """The RL recipe's agent: the policy of :func:`rl_model_dir` (the user's before the
+    shipped one); its record names the model directory, plus ``model_source="user"`` for a
+    user's model (a shipped one's record is as it always was)."""
+    algo = str(recipe.algo)
+    path = rl_model_dir(env_name, algo, models)
     if not (path / "metadata.json").is_file() or not (path / "model.zip").is_file():
+        where = " or ".join(str(d / env_name / algo) for d in rl_model_dirs(models))
         raise ControllerUnavailableError(
-            f"no shipped {recipe.label} model in {path.relative_to(MODELS_DIR.parent.parent)}")
+            f"no {recipe.label} model for env {env_name} (looked in {where}); train one: "
+            f"python -m benchmarks.train_rl --env {env_name} --algo {algo} (saves to "
+            f"./{USER_MODELS_DIR}/{env_name}/{algo}; gp-bench --models DIR looks elsewhere)")
     try:
         import torch
 
@@ -518,6 +567,9 @@ def _build_rl(recipe: ControllerRecipe, env: gym.Env, env_name: str, seed: int,
         raise ControllerUnavailableError(str(err)) from err
     obs, _ = env.reset(seed=seed, options=options)
     agent.reset()
+    if path.is_relative_to(MODELS_DIR):
+        source = {"model_dir": str(path.relative_to(MODELS_DIR.parent.parent))}
+    else:
+        source = {"model_dir": str(path), "model_source": "user"}
     return BuiltController(agent, obs, int(agent.training_steps),
-                           {"model_dir": str(path.relative_to(MODELS_DIR.parent.parent)),
-                            "training_steps": int(agent.training_steps)})
+                           {**source, "training_steps": int(agent.training_steps)})

@@ -29,13 +29,20 @@ is counted per chunk).
 Hyperparameter presets (``--hyperparams``, recorded with the model) start from
 rl-baselines3-zoo's tuned settings; deviations are listed in :data:`HYPERPARAMETERS`.
 
+``--env`` takes every registered system (:data:`gp_envs.SYSTEMS`): the built-in ones and those
+of installed packages that declare their system module in the entry-point group
+``gp_envs.systems`` (``[project.entry-points."gp_envs.systems"]`` in the package's
+``pyproject.toml``, e.g. ``mysystem = "mypkg.mysystem_env"``; ``docs/guide/own-system.md``).
+Then ``gp-bench --envs mysystem --controllers nominal-mpc,sac`` runs the model this saved.
+
 Run (one core)::
 
     python -m benchmarks.train_rl --env cartpole --scenario online --algo sac \\
         --hyperparams sac-swingup --reward bounded-shift --time-feature \\
         --steps 300000 --seed 0 --out benchmarks/models/runs/cartpole_online_sac/seed0
 
-Writes to ``--out`` (default ``benchmarks/models/<env-short-name>/<algo>/``): ``model.zip``,
+Writes to ``--out`` (default ``./benchmarks/models/<env-short-name>/<algo>/`` under the current
+directory, where ``gp-bench`` looks for RL models before the shipped ones): ``model.zip``,
 ``vecnormalize.pkl``, ``metadata.json`` (hyperparameters, wrappers, seed, steps, wall-clock time,
 the command) and ``learning_curve.csv`` at the end, ``learning_curve.csv`` after every
 evaluation, and ``checkpoints/`` (not for version control).
@@ -59,7 +66,7 @@ import shlex
 import shutil
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -71,7 +78,7 @@ from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.vec_env import VecNormalize
 
-import gp_envs
+from benchmarks import USER_MODELS_DIR
 from gp_agents.rl import (
     ALGORITHMS,
     METADATA_FILE,
@@ -84,12 +91,31 @@ from gp_agents.rl import (
 )
 from gp_envs.systems import SYSTEMS
 
-MODELS = Path(__file__).resolve().parent / "models"
 REPO = Path(__file__).resolve().parents[1]
 
-ENV_SHORT_NAMES = {name: system.env_id for name, system in SYSTEMS.items()}
+
+class _EnvIds(Mapping[str, str]):
+    """The registered systems' env ids by system name (live, as :data:`gp_envs.SYSTEMS`)."""
+
+    def __getitem__(self, name: str) -> str:
+        return SYSTEMS[name].env_id
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(SYSTEMS)
+
+    def __len__(self) -> int:
+        return len(SYSTEMS)
+
+
+ENV_SHORT_NAMES: Mapping[str, str] = _EnvIds()
 """``--env`` short names (the registered systems' names, also the model directory names) ->
-registered env ids."""
+registered env ids: every system of :data:`gp_envs.SYSTEMS`, plugins included."""
+
+ENTRY_POINT_HELP = ('a system of your own: declare the module that calls '
+                    'gp_envs.register_system under [project.entry-points."gp_envs.systems"] in '
+                    'your package\'s pyproject.toml and install the package (see '
+                    'docs/guide/own-system.md)')
+"""How a user's system becomes an ``--env`` (for the help and the unknown-env message)."""
 
 EVAL_SEED0 = 1000
 """First reset seed of the learning-curve evaluation episodes (final evaluation: 0..19)."""
@@ -581,9 +607,14 @@ def train(env: str, scenario: str, algo: str, steps: int, seed: int, out: Path,
 
 def main(argv: list[str] | None = None) -> None:
     """Command-line entry point (see the module docstring)."""
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(
+        description=__doc__.split("\n\n")[0],
+        epilog=f"--env: every registered system; {ENTRY_POINT_HELP}. Then gp-bench --envs NAME "
+               "--controllers nominal-mpc,ALGO runs the saved model (it looks in "
+               f"./{USER_MODELS_DIR} before the shipped models).")
     parser.add_argument("--env", required=True,
-                        help=f"short name {sorted(ENV_SHORT_NAMES)} or a registered env id")
+                        help=f"a registered system's name {sorted(ENV_SHORT_NAMES)} or its env "
+                             "id (see below for your own system)")
     parser.add_argument("--scenario", default=None, help="env scenario (default: the env's own)")
     parser.add_argument("--algo", choices=sorted(ALGORITHMS), default="sac")
     parser.add_argument("--hyperparams", choices=sorted(HYPERPARAMETERS), default=None,
@@ -591,7 +622,8 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--steps", type=int, default=100_000, help="total env steps")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", type=Path, default=None,
-                        help="run dir (default benchmarks/models/<env>/<algo>)")
+                        help=f"run dir (default ./{USER_MODELS_DIR}/<env>/<algo> under the "
+                             "current directory, where gp-bench finds it)")
     parser.add_argument("--eval-freq", type=int, default=5000, help="env steps between evals")
     parser.add_argument("--eval-episodes", type=int, default=20, help="episodes per eval")
     parser.add_argument("--checkpoint-freq", type=int, default=10_000,
@@ -609,11 +641,12 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
 
     env_id = ENV_SHORT_NAMES.get(args.env, args.env)
-    if env_id not in gp_envs.ENV_IDS:
-        parser.error(f"unknown env {args.env!r}")
+    short = {v: k for k, v in ENV_SHORT_NAMES.items()}.get(env_id)
+    if short is None:
+        parser.error(f"unknown env {args.env!r}; registered systems: "
+                     f"{', '.join(ENV_SHORT_NAMES)} ({ENTRY_POINT_HELP})")
     scenario = args.scenario or gym.make(env_id).unwrapped.scenario
-    short = {v: k for k, v in ENV_SHORT_NAMES.items()}[env_id]
-    out = args.out or MODELS / short / args.algo
+    out = args.out or USER_MODELS_DIR / short / args.algo
     log(f"pid {os.getpid()}: {shlex.join(sys.argv)}")
     train(short, scenario, args.algo, args.steps, args.seed, out, eval_freq=args.eval_freq,
           eval_episodes=args.eval_episodes, progress=not args.no_progress,
