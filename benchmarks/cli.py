@@ -9,6 +9,12 @@ Examples::
         --data own --seeds 100-119                       # any cell, any seeds
     python -m benchmarks --preset dubins --scheduler tcp://10.0.0.5:8786   # on a Dask cluster
     python -m benchmarks --list-presets
+    python -m benchmarks --envs mysystem --controllers nominal-mpc,sac   # your own system
+
+Your own system (a package declaring it under ``[project.entry-points."gp_envs.systems"]``,
+see ``docs/guide/own-system.md``) is an env like the built-in ones; the RL controllers load
+your models from ``--models DIR`` or ``./benchmarks/models`` (where ``python -m
+benchmarks.train_rl`` saves) before the shipped ones.
 
 A run writes ``<out>/runs/<trial>.npz`` (one file per finished trial, written atomically),
 ``metrics.csv``, ``summary.csv``, PNG figures and ``report.md``; ``<out>`` defaults to
@@ -37,12 +43,14 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import NoReturn
 
+from benchmarks import USER_MODELS_DIR
 from benchmarks.controllers import (
     CONTROLLERS,
     ENVS,
     N_INITIAL_POINTS,
     UnknownNameError,
     check_name,
+    user_models_dir,
 )
 from benchmarks.presets import PRESETS, Preset, custom_experiment, get_preset
 from benchmarks.runner import (
@@ -154,7 +162,14 @@ def build_parser() -> _Parser:
                    help="same as --preset full (every experiment; hours)")
     p.add_argument("--controllers", help="comma-separated controller names: a custom grid, or "
                    "a filter of the preset's episodes")
-    p.add_argument("--envs", help="comma-separated env short names (custom grid / filter)")
+    p.add_argument("--envs", help="comma-separated env short names (custom grid / filter); "
+                   "your own system is one once its package declares the module that calls "
+                   "gp_envs.register_system under [project.entry-points.\"gp_envs.systems\"] "
+                   "in its pyproject.toml and is installed (docs/guide/own-system.md)")
+    p.add_argument("--models", type=Path, metavar="DIR", help="directory of your RL models, "
+                   "<env>/<algo>/ folders as python -m benchmarks.train_rl writes them (default: "
+                   f"./{USER_MODELS_DIR} if it exists); the RL controllers look there before "
+                   "the shipped models, and each trial's record names the model it ran")
     p.add_argument("--scenarios", help="comma-separated scenario names (default: each env's "
                    "default scenario for a custom grid)")
     p.add_argument("--cells", help="comma-separated trial cells of a preset to keep, by "
@@ -288,8 +303,26 @@ def resolve(args: argparse.Namespace) -> tuple[Preset, Path]:
             check_scheduler_address(args.scheduler)
         except SchedulerError as err:
             raise ValueError(str(err)) from None
+    try:
+        models = user_models_dir(getattr(args, "models", None))
+    except FileNotFoundError as err:
+        raise ValueError(str(err)) from None
+    if models is not None:
+        preset = _with_models(preset, models)
     out = args.out or RESULTS_DIR / preset.name
     return preset, out
+
+
+def _with_models(preset: Preset, models: Path) -> Preset:
+    """``preset`` whose RL episodes look for their models in ``models`` first (the spec carries
+    the directory to the worker processes; the trial keys stay)."""
+    def change(s: TrialSpec) -> TrialSpec:
+        rl = s.kind == "episode" and CONTROLLERS[s.controller].family == "rl"
+        return dataclasses.replace(s, models=str(models)) if rl else s
+
+    return dataclasses.replace(preset, experiments=tuple(
+        dataclasses.replace(e, specs=tuple(change(s) for s in e.specs))
+        for e in preset.experiments))
 
 
 def _writable(out: Path) -> str | None:

@@ -19,6 +19,12 @@ Every name the suite used before the recipes had names (``ssgp-mpc``,
 
 MPCs are built after ``env.reset``, so they plan with the episode's nominal model (for the
 Dubins scenario that model is redrawn at every reset).
+
+RL recipes load a stable-baselines3 policy ``<env>/<algo>/`` (:class:`gp_agents.rl.RLAgent`)
+from the first model directory of :func:`rl_model_dirs` that has one: the user's (``gp-bench
+--models DIR``, else ``./benchmarks/models`` under the current directory, where
+``python -m benchmarks.train_rl`` saves), then the shipped ones (:data:`MODELS_DIR`, package
+data, so a non-editable install has them).
 """
 
 from __future__ import annotations
@@ -31,6 +37,7 @@ from typing import Any
 
 import gymnasium as gym
 
+from benchmarks import USER_MODELS_DIR
 from gp_agents.mpc import RECIPES, Converged, Episodic, GPInNLP, Residual, make_mpc
 from gp_agents.mpc.controller import default_learned_dynamics
 from gp_agents.mpc.recipes import OracleModel, recipe_settings
@@ -40,6 +47,7 @@ from gp_envs.systems import SYSTEMS
 MODELS_DIR = Path(__file__).resolve().parent / "models"
 """Where the shipped RL policies live: ``<env short name>/<algo>/`` inside the installed package
 (``[tool.setuptools.package-data]`` in ``pyproject.toml`` ships them)."""
+
 
 N_INITIAL_POINTS = 200
 """Initial transitions collected for the learning MPCs (paper: 200 points)."""
@@ -355,8 +363,42 @@ class BuiltController:
     info: dict[str, Any]
 
 
-def rl_model_dir(env: str, algo: str) -> Path:
-    """Directory of the shipped RL model of ``algo`` for benchmark env ``env``."""
+def user_models_dir(models: str | Path | None = None) -> Path | None:
+    """The user's model directory, absolute: ``models`` (``gp-bench --models``) if given, else
+    :data:`benchmarks.USER_MODELS_DIR` under the current directory if it exists; None when
+    there is none or it is the shipped :data:`MODELS_DIR`.
+
+    Raises:
+        FileNotFoundError: ``models`` is given but is not a directory.
+    """
+    if models is not None:
+        path = Path(models).resolve()
+        if not path.is_dir():
+            raise FileNotFoundError(f"--models {models}: no such directory; give the directory "
+                                    "that holds <env>/<algo>/ model folders (python -m "
+                                    "benchmarks.train_rl writes ./benchmarks/models/<env>/<algo>)")
+    else:
+        path = USER_MODELS_DIR.resolve()
+        if not path.is_dir():
+            return None
+    return None if path == MODELS_DIR.resolve() else path
+
+
+def rl_model_dirs(models: str | Path | None = None) -> list[Path]:
+    """The model directories the RL recipes look in, first match wins: the user's
+    (:func:`user_models_dir` of ``models``), then the shipped :data:`MODELS_DIR`."""
+    user = user_models_dir(models)
+    return [MODELS_DIR] if user is None else [user, MODELS_DIR]
+
+
+def rl_model_dir(env: str, algo: str, models: str | Path | None = None) -> Path:
+    """Directory of the RL model of ``algo`` for benchmark env ``env``: ``<dir>/<env>/<algo>``
+    of the first of :func:`rl_model_dirs` that holds a saved agent there (the shipped path if
+    none does)."""
+    for root in rl_model_dirs(models):
+        path = root / env / algo
+        if (path / "metadata.json").is_file() and (path / "model.zip").is_file():
+            return path
     return MODELS_DIR / env / algo
 
 
@@ -402,7 +444,8 @@ def build_controller(name: str, env: gym.Env, env_name: str, seed: int,
                      n_init: int = N_INITIAL_POINTS, *, data_env: gym.Env | None = None,
                      settings: dict[str, Any] | None = None,
                      options: dict[str, Any] | None = None,
-                     learner: Any | None = None, same_system: bool = False) -> BuiltController:
+                     learner: Any | None = None, same_system: bool = False,
+                     models: str | Path | None = None) -> BuiltController:
     """Build controller ``name`` for ``env`` and reset ``env`` with ``seed``.
 
     Learning recipes first collect ``n_init`` transitions with
@@ -425,6 +468,7 @@ def build_controller(name: str, env: gym.Env, env_name: str, seed: int,
             gives (``collect_initial_data``'s default); False (the presets): each data episode
             a reset of its own with seed ``seed * 1000 + k``, the data env already being the
             system the trial's cell asks for.
+        models: the user's RL model directory (RL recipes; see :func:`rl_model_dirs`).
 
     Raises:
         UnknownNameError: unknown controller name.
@@ -433,7 +477,7 @@ def build_controller(name: str, env: gym.Env, env_name: str, seed: int,
     check_name("controller", name, list(CONTROLLERS))
     recipe = CONTROLLERS[name]
     if recipe.family == "rl":
-        return _build_rl(recipe, env, env_name, seed, options)
+        return _build_rl(recipe, env, env_name, seed, options, models)
     from gp_agents import PseudospectralMPC, collect_initial_data
 
     if learner is not None and recipe.learner is None:
@@ -462,11 +506,19 @@ def build_controller(name: str, env: gym.Env, env_name: str, seed: int,
 
 
 def _build_rl(recipe: ControllerRecipe, env: gym.Env, env_name: str, seed: int,
-               options: dict[str, Any] | None = None) -> BuiltController:
-    path = rl_model_dir(env_name, str(recipe.algo))
+              options: dict[str, Any] | None = None,
+              models: str | Path | None = None) -> BuiltController:
+    """The RL recipe's agent: the policy of :func:`rl_model_dir` (the user's before the
+    shipped one); its record names the model directory, plus ``model_source="user"`` for a
+    user's model (a shipped one's record is as it always was)."""
+    algo = str(recipe.algo)
+    path = rl_model_dir(env_name, algo, models)
     if not (path / "metadata.json").is_file() or not (path / "model.zip").is_file():
+        where = " or ".join(str(d / env_name / algo) for d in rl_model_dirs(models))
         raise ControllerUnavailableError(
-            f"no shipped {recipe.label} model in {path.relative_to(MODELS_DIR.parent.parent)}")
+            f"no {recipe.label} model for env {env_name} (looked in {where}); train one: "
+            f"python -m benchmarks.train_rl --env {env_name} --algo {algo} (saves to "
+            f"./{USER_MODELS_DIR}/{env_name}/{algo}; gp-bench --models DIR looks elsewhere)")
     try:
         import torch
 
@@ -480,6 +532,9 @@ def _build_rl(recipe: ControllerRecipe, env: gym.Env, env_name: str, seed: int,
         raise ControllerUnavailableError(str(err)) from err
     obs, _ = env.reset(seed=seed, options=options)
     agent.reset()
+    if path.is_relative_to(MODELS_DIR):
+        source = {"model_dir": str(path.relative_to(MODELS_DIR.parent.parent))}
+    else:
+        source = {"model_dir": str(path), "model_source": "user"}
     return BuiltController(agent, obs, int(agent.training_steps),
-                           {"model_dir": str(path.relative_to(MODELS_DIR.parent.parent)),
-                            "training_steps": int(agent.training_steps)})
+                           {**source, "training_steps": int(agent.training_steps)})

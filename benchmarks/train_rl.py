@@ -29,13 +29,20 @@ is counted per chunk).
 Hyperparameter presets (``--hyperparams``, recorded with the model) start from
 rl-baselines3-zoo's tuned settings; deviations are listed in :data:`HYPERPARAMETERS`.
 
+``--env`` takes every registered system (:data:`gp_envs.SYSTEMS`): the built-in ones and those
+of installed packages that declare their system module in the entry-point group
+``gp_envs.systems`` (``[project.entry-points."gp_envs.systems"]`` in the package's
+``pyproject.toml``, e.g. ``mysystem = "mypkg.mysystem_env"``; ``docs/guide/own-system.md``).
+Then ``gp-bench --envs mysystem --controllers nominal-mpc,sac`` runs the model this saved.
+
 Run (one core)::
 
     python -m benchmarks.train_rl --env cartpole --scenario online --algo sac \\
         --hyperparams sac-swingup --reward bounded-shift --time-feature \\
         --steps 300000 --seed 0 --out benchmarks/models/runs/cartpole_online_sac/seed0
 
-Writes to ``--out`` (default ``benchmarks/models/<env-short-name>/<algo>/``): ``model.zip``,
+Writes to ``--out`` (default ``./benchmarks/models/<env-short-name>/<algo>/`` under the current
+directory, where ``gp-bench`` looks for RL models before the shipped ones): ``model.zip``,
 ``vecnormalize.pkl``, ``metadata.json`` (hyperparameters, wrappers, seed, steps, wall-clock time,
 the command) and ``learning_curve.csv`` at the end, ``learning_curve.csv`` after every
 evaluation, and ``checkpoints/`` (not for version control).
@@ -59,7 +66,7 @@ import shlex
 import shutil
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -67,10 +74,11 @@ import gymnasium as gym
 import numpy as np
 import torch
 from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.vec_env import VecNormalize
 
-import gp_envs
+from benchmarks import USER_MODELS_DIR
 from gp_agents.rl import (
     ALGORITHMS,
     METADATA_FILE,
@@ -83,12 +91,31 @@ from gp_agents.rl import (
 )
 from gp_envs.systems import SYSTEMS
 
-MODELS = Path(__file__).resolve().parent / "models"
 REPO = Path(__file__).resolve().parents[1]
 
-ENV_SHORT_NAMES = {name: system.env_id for name, system in SYSTEMS.items()}
+
+class _EnvIds(Mapping[str, str]):
+    """The registered systems' env ids by system name (live, as :data:`gp_envs.SYSTEMS`)."""
+
+    def __getitem__(self, name: str) -> str:
+        return SYSTEMS[name].env_id
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(SYSTEMS)
+
+    def __len__(self) -> int:
+        return len(SYSTEMS)
+
+
+ENV_SHORT_NAMES: Mapping[str, str] = _EnvIds()
 """``--env`` short names (the registered systems' names, also the model directory names) ->
-registered env ids."""
+registered env ids: every system of :data:`gp_envs.SYSTEMS`, plugins included."""
+
+ENTRY_POINT_HELP = ('a system of your own: declare the module that calls '
+                    'gp_envs.register_system under [project.entry-points."gp_envs.systems"] in '
+                    'your package\'s pyproject.toml and install the package (see '
+                    'docs/guide/own-system.md)')
+"""How a user's system becomes an ``--env`` (for the help and the unknown-env message)."""
 
 EVAL_SEED0 = 1000
 """First reset seed of the learning-curve evaluation episodes (final evaluation: 0..19)."""
@@ -252,6 +279,18 @@ def write_curve(path: Path, rows: list[dict[str, float]]) -> None:
     tmp.replace(path)
 
 
+def quiet_logger(model: BaseAlgorithm) -> BaseAlgorithm:
+    """Give ``model`` a logger without outputs; returns ``model``.
+
+    Without a logger of its own, every ``model.learn`` call configures SB3's default one, which
+    creates an empty folder ``SB3-<date-time>`` in the system temp directory even when it writes
+    nothing (``verbose=0``): one per training chunk. The learning curve is this script's own
+    (``learning_curve.csv``). A loaded model needs it again (SB3 does not save the logger).
+    """
+    model.set_logger(Logger(folder=None, output_formats=[]))
+    return model
+
+
 # --------------------------------------------------------------------------- checkpoints
 def rollout_unit(model: BaseAlgorithm) -> int:
     """Env steps one ``learn`` iteration advances by (training runs in whole units)."""
@@ -339,7 +378,7 @@ def restore_checkpoint(path: Path, config: dict[str, Any]) -> tuple[BaseAlgorith
         model.load_replay_buffer(path / "replay_buffer.pkl")
     inner._reset_seeds()  # load() re-seeded the VecEnv's next reset; it must not apply
     _set_rng_state(model, state["rng"])
-    return model, venv
+    return quiet_logger(model), venv
 
 
 # --------------------------------------------------------------------------- training
@@ -476,8 +515,8 @@ def train(env: str, scenario: str, algo: str, steps: int, seed: int, out: Path,
             raise ValueError(f"{out} has a finished model but no checkpoint to extend it from")
         venv = _make_venv(config)
         sb3_kwargs = {k: v for k, v in copy.deepcopy(hp).items() if k not in _ENV_SIDE}
-        model = ALGORITHMS[algo]("MlpPolicy", venv, seed=seed, device="cpu", verbose=0,
-                                 **sb3_kwargs)
+        model = quiet_logger(ALGORITHMS[algo]("MlpPolicy", venv, seed=seed, device="cpu",
+                                              verbose=0, **sb3_kwargs))
         rows, elapsed, eval_time = [], 0.0, 0.0
         sessions = [{"start_utc": f"{dt.datetime.now(dt.UTC):%FT%TZ}", "from_steps": 0}]
     if isinstance(model, OffPolicyAlgorithm) and model.train_freq.unit.value != "step":
@@ -568,9 +607,14 @@ def train(env: str, scenario: str, algo: str, steps: int, seed: int, out: Path,
 
 def main(argv: list[str] | None = None) -> None:
     """Command-line entry point (see the module docstring)."""
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(
+        description=__doc__.split("\n\n")[0],
+        epilog=f"--env: every registered system; {ENTRY_POINT_HELP}. Then gp-bench --envs NAME "
+               "--controllers nominal-mpc,ALGO runs the saved model (it looks in "
+               f"./{USER_MODELS_DIR} before the shipped models).")
     parser.add_argument("--env", required=True,
-                        help=f"short name {sorted(ENV_SHORT_NAMES)} or a registered env id")
+                        help=f"a registered system's name {sorted(ENV_SHORT_NAMES)} or its env "
+                             "id (see below for your own system)")
     parser.add_argument("--scenario", default=None, help="env scenario (default: the env's own)")
     parser.add_argument("--algo", choices=sorted(ALGORITHMS), default="sac")
     parser.add_argument("--hyperparams", choices=sorted(HYPERPARAMETERS), default=None,
@@ -578,7 +622,8 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--steps", type=int, default=100_000, help="total env steps")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", type=Path, default=None,
-                        help="run dir (default benchmarks/models/<env>/<algo>)")
+                        help=f"run dir (default ./{USER_MODELS_DIR}/<env>/<algo> under the "
+                             "current directory, where gp-bench finds it)")
     parser.add_argument("--eval-freq", type=int, default=5000, help="env steps between evals")
     parser.add_argument("--eval-episodes", type=int, default=20, help="episodes per eval")
     parser.add_argument("--checkpoint-freq", type=int, default=10_000,
@@ -596,11 +641,12 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
 
     env_id = ENV_SHORT_NAMES.get(args.env, args.env)
-    if env_id not in gp_envs.ENV_IDS:
-        parser.error(f"unknown env {args.env!r}")
+    short = {v: k for k, v in ENV_SHORT_NAMES.items()}.get(env_id)
+    if short is None:
+        parser.error(f"unknown env {args.env!r}; registered systems: "
+                     f"{', '.join(ENV_SHORT_NAMES)} ({ENTRY_POINT_HELP})")
     scenario = args.scenario or gym.make(env_id).unwrapped.scenario
-    short = {v: k for k, v in ENV_SHORT_NAMES.items()}[env_id]
-    out = args.out or MODELS / short / args.algo
+    out = args.out or USER_MODELS_DIR / short / args.algo
     log(f"pid {os.getpid()}: {shlex.join(sys.argv)}")
     train(short, scenario, args.algo, args.steps, args.seed, out, eval_freq=args.eval_freq,
           eval_episodes=args.eval_episodes, progress=not args.no_progress,

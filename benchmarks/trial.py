@@ -19,7 +19,7 @@ import subprocess
 import time
 import traceback
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -138,6 +138,12 @@ class TrialSpec:
         n_init: initial transitions collected for the learning recipes.
         cell: the episode's variation of system, data and start (:class:`Cell`; a dict of
             its fields is accepted, as stored in trial files).
+        models: the user's RL model directory, absolute (``gp-bench --models``, or the
+            ``./benchmarks/models`` of the command's directory), which the RL recipes look in
+            before the shipped models (:func:`benchmarks.controllers.rl_model_dirs`); it
+            travels with the spec to the worker processes. Not part of the :attr:`key` nor of
+            the comparisons (the trial is the same; its record names the model it ran), and
+            left out of :meth:`to_dict` when None.
     """
 
     kind: str
@@ -149,6 +155,7 @@ class TrialSpec:
     max_steps: int | None = None
     n_init: int = N_INITIAL_POINTS
     cell: Cell = Cell()
+    models: str | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
         if isinstance(self.cell, dict):
@@ -176,8 +183,11 @@ class TrialSpec:
             check_name("controller", self.controller, list(CONTROLLERS))
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain-dict form (stored in the trial file)."""
-        return asdict(self)
+        """Plain-dict form (stored in the trial file; without ``models`` when it is None)."""
+        out = asdict(self)
+        if out["models"] is None:
+            del out["models"]
+        return out
 
 
 def _percentile(x: np.ndarray, q: float) -> float:
@@ -200,7 +210,7 @@ def build_episode(spec: TrialSpec) -> tuple[Any, BuiltController, dict[str, Any]
                              same_system=cell.data == "own",
                              settings={"constraints": Constraints(uncertainty_radius=cell.kappa)}
                              if cell.kappa else None,
-                             options=options)
+                             options=options, models=spec.models)
     return env, built, options
 
 

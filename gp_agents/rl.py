@@ -5,7 +5,7 @@ preprocessing it was trained with, so it runs in the plain Gymnasium loop on the
 exactly as ``gym.make`` returns it::
 
     env = gym.make("gp_envs/CartPoleSwingUp-v0", scenario="online")
-    agent = RLAgent.load("benchmarks/models/cartpole/sac", env)  # a shipped policy, from any cwd
+    agent = RLAgent.load("benchmarks/models/cartpole/sac", env)  # a saved agent's directory
     obs, _ = env.reset(seed=0)
     while True:
         a = agent.act(obs)
@@ -47,10 +47,13 @@ A saved agent is a directory::
                        hyperparameters, seed, training steps, wall-clock training time,
                        library versions
 
-The policies shipped with the package (``benchmarks/models/<env>/<algo>/``, installed as package
-data of ``benchmarks``) load by name from any directory, also from a non-editable install:
-``RLAgent.load("cartpole/sac", env)`` or the repository path
-``RLAgent.load("benchmarks/models/cartpole/sac", env)``; :func:`shipped_models` lists them.
+An agent loads from its directory; a relative name is also looked up in the model directories
+(``<env>/<algo>/`` folders) given as ``search``. This library knows no model directory of its
+own (it never imports the benchmark): the policies shipped with the package are package data of
+``benchmarks`` (``benchmarks/models/<env>/<algo>/``), so from any directory, also from a
+non-editable install, ``RLAgent.load("cartpole/sac", env,
+search=[benchmarks.controllers.MODELS_DIR])`` loads the installed copy, and
+``saved_models(MODELS_DIR)`` lists them.
 
 stable-baselines3 and torch are imported at the top of this module; the core package does not
 import it eagerly, so ``gp_envs``/``gp_agents`` work without the RL extra.
@@ -59,7 +62,6 @@ import it eagerly, so ``gp_envs``/``gp_agents`` work without the RL extra.
 from __future__ import annotations
 
 import copy
-import importlib.resources
 import json
 import pickle
 from collections.abc import Mapping, Sequence
@@ -81,8 +83,8 @@ from gp_agents.agent import rollout as closed_loop
 
 __all__ = ["ALGORITHMS", "AngleFeatures", "BoundedShiftReward", "GoalBonusReward",
            "NormalizedAction", "RLAgent", "TimeFeature", "get_env_state", "make_training_vec_env",
-           "resolve_model_dir", "rollout", "set_env_state", "shipped_models",
-           "shipped_models_dir", "termination_terms", "wrap_env"]
+           "resolve_model_dir", "rollout", "saved_models", "set_env_state", "termination_terms",
+           "wrap_env"]
 
 ALGORITHMS: dict[str, type[BaseAlgorithm]] = {"sac": SAC, "ppo": PPO, "tqc": TQC}
 """Supported algorithms by lower-case name (TQC from sb3-contrib)."""
@@ -594,21 +596,25 @@ class RLAgent:
         return out
 
     @classmethod
-    def load(cls, path: str | Path, env: gym.Env, deterministic: bool = True) -> RLAgent:
+    def load(cls, path: str | Path, env: gym.Env, deterministic: bool = True,
+             search: Sequence[str | Path] = ()) -> RLAgent:
         """Load a saved agent and check that it was trained for ``env``.
 
         Args:
-            path: directory written by :meth:`save` (or the ``model.zip`` inside it), or the
-                name of a shipped policy (:func:`shipped_models`; see :func:`resolve_model_dir`).
+            path: directory written by :meth:`save` (or the ``model.zip`` inside it), or a
+                name ``"<env>/<algo>"`` in a model directory of ``search`` (see
+                :func:`resolve_model_dir`).
             env: the env the agent will act in (made with ``gym.make``).
             deterministic: see :class:`RLAgent`.
+            search: model directories (``<env>/<algo>/`` folders) a relative ``path`` is
+                looked up in when it holds no saved agent relative to the current directory.
 
         Raises:
-            FileNotFoundError: no saved agent at ``path`` nor a shipped one of that name (the
-                message lists the shipped ones).
+            FileNotFoundError: no saved agent at ``path`` nor in ``search`` (the message lists
+                the agents in ``search``).
             ValueError: the agent was trained for another env id, scenario or spaces.
         """
-        d = resolve_model_dir(path)
+        d = resolve_model_dir(path, search)
         meta_file = d / METADATA_FILE
         meta = json.loads(meta_file.read_text())
         cls._check_env(meta, env, d)
@@ -649,68 +655,64 @@ class RLAgent:
                 f"training_steps={self.training_steps}, seed={self.seed})")
 
 
-SHIPPED_MODELS_PACKAGE = "benchmarks"
-"""The package whose ``models/<env>/<algo>/`` directories hold the shipped RL policies (package
-data, so they are installed with it)."""
-
-
-def shipped_models_dir() -> Path | None:
-    """Directory of the shipped RL policies (``models/`` of :data:`SHIPPED_MODELS_PACKAGE`,
-    wherever that package is installed), or None if it is not importable or has none."""
-    try:
-        root = importlib.resources.files(SHIPPED_MODELS_PACKAGE)
-    except ModuleNotFoundError:
-        return None
-    models = Path(str(root)) / "models"  # an installed (not zipped) package: a real directory
-    return models if models.is_dir() else None
-
-
 def _is_saved_agent(d: Path) -> bool:
     return (d / METADATA_FILE).is_file() and (d / MODEL_FILE).is_file()
 
 
-def shipped_models() -> list[str]:
-    """Names ``"<env>/<algo>"`` of the shipped RL policies, e.g. ``["cartpole/sac", ...]``."""
-    models = shipped_models_dir()
-    if models is None:
+def saved_models(directory: str | Path) -> list[str]:
+    """Names ``"<env>/<algo>"`` of the saved agents in a model directory laid out as
+    ``<directory>/<env>/<algo>/`` (e.g. the benchmark's ``benchmarks/models``), sorted; empty if
+    ``directory`` does not exist."""
+    root = Path(directory)
+    if not root.is_dir():
         return []
-    return sorted(m.parent.relative_to(models).as_posix() for m in models.glob(f"*/*/{MODEL_FILE}")
+    return sorted(m.parent.relative_to(root).as_posix() for m in root.glob(f"*/*/{MODEL_FILE}")
                   if _is_saved_agent(m.parent))
 
 
-def resolve_model_dir(path: str | Path) -> Path:
+def resolve_model_dir(path: str | Path, search: Sequence[str | Path] = ()) -> Path:
     """The directory of the saved agent ``path`` names.
 
     ``path`` is a directory written by :meth:`RLAgent.save` (or its ``model.zip``), absolute or
-    relative to the current directory. A relative path that holds no saved agent there but
-    names a shipped policy resolves to the installed copy, so the repository-relative
-    ``"benchmarks/models/cartpole/sac"`` (and the short ``"cartpole/sac"``) work from any
-    directory and in a non-editable install.
+    relative to the current directory. A relative path that holds no saved agent there is looked
+    up in each model directory of ``search`` in turn (``<env>/<algo>/`` folders, see
+    :func:`saved_models`): as ``<dir>/<path>``, and with leading parts of ``path`` that repeat
+    the end of ``<dir>`` dropped, so with ``search=[".../benchmarks/models"]`` the names
+    ``"cartpole/sac"``, ``"models/cartpole/sac"`` and ``"benchmarks/models/cartpole/sac"`` all
+    find ``.../benchmarks/models/cartpole/sac``. This module knows no model directory of its
+    own: the benchmark passes its shipped one (``benchmarks.controllers.MODELS_DIR``).
+
+    Args:
+        path: a saved agent's directory or ``model.zip``, or a name relative to ``search``.
+        search: model directories to look in, first match wins.
 
     Raises:
-        FileNotFoundError: no saved agent at ``path`` and no shipped policy of that name; the
-            message lists the shipped policies.
+        FileNotFoundError: no saved agent at ``path`` nor in ``search``; the message lists the
+            agents in ``search``.
     """
     d = Path(path)
     if d.is_file() or (d.name == MODEL_FILE and not d.is_dir()):
         d = d.parent
     if _is_saved_agent(d):
         return d
-    models = shipped_models_dir()
-    if not d.is_absolute() and models is not None:
-        parts = d.parts
-        for prefix in ((SHIPPED_MODELS_PACKAGE, "models"), ("models",)):
-            if parts[:len(prefix)] == prefix:
-                parts = parts[len(prefix):]
-                break
-        if parts and _is_saved_agent(models.joinpath(*parts)):
-            return models.joinpath(*parts)
+    roots = [Path(r) for r in search]
+    if not d.is_absolute():
+        for root in roots:
+            parts = d.parts
+            tail = root.resolve().parts
+            for k in range(min(len(parts), len(tail)), 0, -1):
+                if parts[:k] == tail[-k:]:
+                    parts = parts[k:]
+                    break
+            if parts and _is_saved_agent(root.joinpath(*parts)):
+                return root.joinpath(*parts)
     where = d if d.is_absolute() else f"{d} (relative to {Path.cwd()})"
-    names = shipped_models()
-    shipped = (f"shipped policies: {', '.join(names)} (e.g. RLAgent.load({names[0]!r}, env))"
-               if names else f"no shipped policies found ({SHIPPED_MODELS_PACKAGE} package)")
-    raise FileNotFoundError(f"no saved RLAgent ({METADATA_FILE} + {MODEL_FILE}) in {where}; "
-                            f"{shipped}")
+    listed = [f"{root}: {', '.join(saved_models(root)) or 'none'}" for root in roots]
+    found = ("; saved agents in " + "; in ".join(listed) if listed else
+             "; pass the saved agent's directory, or the model directories to look in "
+             "(search=[...], e.g. benchmarks.controllers.MODELS_DIR for the shipped policies)")
+    raise FileNotFoundError(f"no saved RLAgent ({METADATA_FILE} + {MODEL_FILE}) in {where}"
+                            f"{found}")
 
 
 def rollout(agent: RLAgent, env: gym.Env, seed: int) -> dict[str, Any]:

@@ -152,7 +152,9 @@ def test_missing_rl_model_is_recorded_as_not_available(tmp_path: Path) -> None:
     spec = TrialSpec("episode", "quadrotor", "gp", "sac", 0, max_steps=2)
     summary = run_trials([spec], tmp_path, workers=0, progress=False)
     assert summary.ran == {spec.key: "unavailable"}
-    assert "no shipped SAC model" in load_record(trial_path(tmp_path, spec))["message"]
+    message = load_record(trial_path(tmp_path, spec))["message"]
+    assert "no SAC model for env quadrotor" in message
+    assert "python -m benchmarks.train_rl --env quadrotor --algo sac" in message  # the fix
 
 
 def test_local_process_pool_runs_trials(tmp_path: Path) -> None:

@@ -1,11 +1,13 @@
 """The package works outside the repository: shipped RL policies resolve from the installed
-package (by name, from any directory), and a wheel installed non-editably runs an RL and an MPC
-trial from an empty directory, writing its results there."""
+package (by name, from any directory, given the benchmark's model directory), the library never
+imports the benchmark, and a wheel installed non-editably runs an RL and an MPC trial from an
+empty directory, writing its results there."""
 
 from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -33,34 +35,62 @@ def test_shipped_policies_load_by_name_from_any_directory(
     import gymnasium as gym
 
     import gp_envs  # noqa: F401  (registers the envs)
-    from gp_agents.rl import RLAgent, resolve_model_dir, shipped_models, shipped_models_dir
+    from benchmarks.controllers import MODELS_DIR
+    from gp_agents.rl import RLAgent, resolve_model_dir, saved_models
 
-    assert shipped_models() == SHIPPED and "cartpole/sac" in SHIPPED
-    assert shipped_models_dir() == MODELS
+    assert MODELS_DIR == MODELS
+    assert saved_models(MODELS_DIR) == SHIPPED and "cartpole/sac" in SHIPPED
     monkeypatch.chdir(tmp_path)  # no benchmarks/models/ here
     env = gym.make("gp_envs/CartPoleSwingUp-v0", scenario="online")
     for name in ("benchmarks/models/cartpole/sac", "cartpole/sac", "models/cartpole/sac",
                  "benchmarks/models/cartpole/sac/model.zip"):
-        assert resolve_model_dir(name) == MODELS / "cartpole" / "sac", name
-    agent = RLAgent.load("cartpole/sac", env)
+        assert resolve_model_dir(name, [MODELS_DIR]) == MODELS / "cartpole" / "sac", name
+    agent = RLAgent.load("cartpole/sac", env, search=[MODELS_DIR])
     obs, _ = env.reset(seed=0)
     assert env.action_space.contains(agent.act(obs))
     # a saved agent in the current directory comes first, whatever its name
     shutil.copytree(MODELS / "cartpole" / "sac", tmp_path / "cartpole" / "sac")
-    assert resolve_model_dir("cartpole/sac") == Path("cartpole/sac")
+    assert resolve_model_dir("cartpole/sac", [MODELS_DIR]) == Path("cartpole/sac")
     RLAgent.load("cartpole/sac", env)
 
 
 def test_unknown_policy_names_list_the_shipped_ones(rl: object, tmp_path: Path,
                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    from benchmarks.controllers import MODELS_DIR
     from gp_agents.rl import resolve_model_dir
 
     monkeypatch.chdir(tmp_path)
+    listed = re.escape(f"in {MODELS_DIR}: " + ", ".join(SHIPPED))
     for name in ("cartpole/ppo", "benchmarks/models/moon/sac", str(tmp_path / "nothing")):
-        with pytest.raises(FileNotFoundError, match="shipped policies: " + ", ".join(SHIPPED)):
-            resolve_model_dir(name)
+        with pytest.raises(FileNotFoundError, match=listed):
+            resolve_model_dir(name, [MODELS_DIR])
     with pytest.raises(FileNotFoundError, match=f"relative to {tmp_path}"):
-        resolve_model_dir("cartpole/ppo")
+        resolve_model_dir("cartpole/ppo", [MODELS_DIR])
+    with pytest.raises(FileNotFoundError, match="search="):  # the message names the fix
+        resolve_model_dir("cartpole/sac")
+
+
+def test_the_library_never_imports_the_benchmark() -> None:
+    """gp_envs -> gp_agents -> benchmarks: no module of the library imports ``benchmarks``,
+    neither by an import statement nor by naming it in a string (``importlib`` and
+    ``importlib.resources`` take module names as strings)."""
+    import ast
+
+    module_name = re.compile(r"benchmarks(\.\w+)*")
+    found = []
+    for package in ("gp_envs", "gp_agents"):
+        for path in sorted((ROOT / package).rglob("*.py")):
+            for node in ast.walk(ast.parse(path.read_text(), str(path))):
+                names: list[str] = []
+                if isinstance(node, ast.Import):
+                    names = [a.name for a in node.names]
+                elif isinstance(node, ast.ImportFrom):
+                    names = [node.module or ""]
+                elif isinstance(node, ast.Constant) and isinstance(node.value, str):
+                    names = [node.value]
+                found += [f"{path.relative_to(ROOT)}:{node.lineno}: {n!r}" for n in names
+                          if module_name.fullmatch(n)]
+    assert not found, found
 
 
 def _copy_sources(dest: Path) -> Path:
@@ -115,11 +145,12 @@ def test_wheel_installed_in_a_fresh_venv_runs_rl_and_mpc_trials(rl: object,
         import benchmarks, gp_agents, gp_envs
         import gymnasium as gym
         from benchmarks.trial import code_version
-        from gp_agents.rl import RLAgent, shipped_models
+        from benchmarks.controllers import MODELS_DIR
+        from gp_agents.rl import RLAgent, saved_models
         env = gym.make("gp_envs/CartPoleSwingUp-v0", scenario="online")
-        RLAgent.load("benchmarks/models/cartpole/sac", env)
+        RLAgent.load("benchmarks/models/cartpole/sac", env, search=[MODELS_DIR])
         print(json.dumps({"files": [m.__file__ for m in (benchmarks, gp_agents, gp_envs)],
-                          "path": sys.path, "shipped": shipped_models(),
+                          "path": sys.path, "shipped": saved_models(MODELS_DIR),
                           "version": code_version()}))
         """], cwd=work, env=env, capture_output=True, text=True, timeout=600)
     assert probe.returncode == 0, probe.stderr

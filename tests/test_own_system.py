@@ -1,0 +1,178 @@
+"""A user's own system end to end, as a user would do it (``docs/guide/own-system.md``).
+
+A small system (a puck pushed along a line, with unmodeled friction and a mass error) lives in
+a package installed into a temporary directory: its modules plus a ``*.dist-info`` folder whose
+``entry_points.txt`` declares the system module in the group ``gp_envs.systems``. With that
+directory on ``PYTHONPATH`` (and nothing else), subprocesses train an RL model with ``python -m
+benchmarks.train_rl --env puck`` into ``<cwd>/benchmarks/models`` and run it and
+``nominal-mpc`` with ``python -m benchmarks`` in that directory (the trials in a spawned worker
+process), then with ``--models DIR`` from another directory.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from benchmarks.runner import load_record
+
+ROOT = Path(__file__).resolve().parent.parent
+
+PHYSICS = '''
+"""Puck on a line: ``pdot = v``, ``vdot = (F - c v) / m`` (mass m, viscous friction c)."""
+
+import casadi as ca
+
+from gp_envs.physics.ranges import ParamRange
+
+PARAM_RANGES = {"m": ParamRange.positive("mass, kg"),
+                "c": ParamRange.nonnegative("viscous friction, N s/m")}
+PARAM_NAMES = tuple(PARAM_RANGES)
+STATE_NAMES = ("p", "v")
+STATE_UNITS = ("m", "m/s")
+CONTROL_NAMES = ("F",)
+CONTROL_UNITS = ("N",)
+
+
+def ode(x, u, p):
+    return ca.vertcat(x[1], (u[0] - p[1] * x[1]) / p[0])
+'''
+
+ENV = '''
+"""The puck's env and its registration (the module the entry point names)."""
+
+from typing import ClassVar
+
+import numpy as np
+
+from gp_envs.base import GPEnv, Scenario
+from gp_envs.model import Task, diag
+from gp_envs.systems import PlanningDefaults, System, register_system
+from gp_puck import puck
+
+
+class PuckEnv(GPEnv):
+    physics = puck
+    SCENARIOS: ClassVar[dict[str, Scenario]] = {
+        "friction": Scenario(description="unmodeled friction, 20% mass error",
+                             true={"m": 1.2, "c": 0.5}, nominal={"m": 1.0, "c": 0.0},
+                             u_lb=(-2.0,), u_ub=(2.0,))}
+    DEFAULT_SCENARIO = "friction"
+    DT = 0.1
+    SUBSTEPS = 2
+    X_LB = np.array([-3.0, -5.0])
+    X_UB = np.array([3.0, 5.0])
+    DYNAMIC_INDICES = (1,)
+
+    def _task(self):
+        return Task(goal=np.array([1.0, 0.0]), Q=diag([10.0, 1.0]), R=diag([0.01]),
+                    Qf=diag([100.0, 10.0]), u_ref=np.zeros(1),
+                    goal_tolerance=np.array([0.05, np.inf]), hold_time=0.5, duration=3.0)
+
+    def _initial_state(self):
+        return self.np_random.uniform(-0.05, 0.05, size=2)
+
+
+def data_policy(model, rng):
+    target = rng.uniform(-1.0, 1.0)
+
+    def policy(obs, t):
+        return np.array([2.0 * (target - obs[0]) - obs[1]])
+
+    return policy
+
+
+register_system(System(
+    name="puck", env_id="gp_puck/Puck-v0", entry_point="gp_puck.env:PuckEnv",
+    max_episode_steps=30, data_policy=data_policy,
+    planning=PlanningDefaults(horizon=1.0, n_nodes=6, n_intervals=1, nodes_per_period=3)))
+'''
+
+
+def _install_plugin(site: Path) -> None:
+    """Write package ``gp_puck`` and its distribution metadata into ``site``."""
+    pkg = site / "gp_puck"
+    pkg.mkdir(parents=True)
+    (pkg / "__init__.py").write_text("")
+    (pkg / "puck.py").write_text(textwrap.dedent(PHYSICS))
+    (pkg / "env.py").write_text(textwrap.dedent(ENV))
+    dist = site / "gp_puck-0.1.dist-info"
+    dist.mkdir()
+    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: gp-puck\nVersion: 0.1\n")
+    (dist / "entry_points.txt").write_text("[gp_envs.systems]\npuck = gp_puck.env\n")
+
+
+def _run(args: list[str], cwd: Path, env: dict[str, str]) -> subprocess.CompletedProcess:
+    res = subprocess.run([sys.executable, *args], cwd=cwd, env=env, capture_output=True,
+                         text=True, timeout=300)
+    assert res.returncode == 0, f"{args}:\n{res.stdout}\n{res.stderr}"
+    return res
+
+
+def _records(out: Path) -> dict[str, dict]:
+    records = [load_record(p) for p in sorted((out / "runs").glob("*.npz"))]
+    return {r["spec"]["controller"]: r for r in records if r is not None}
+
+
+def test_own_system_trains_and_runs_through_the_command_lines(tmp_path: Path) -> None:
+    pytest.importorskip("gp_agents.rl")
+    site = tmp_path / "site"
+    _install_plugin(site)
+    env = dict(os.environ, OMP_NUM_THREADS="1",
+               PYTHONPATH=os.pathsep.join([str(site), str(ROOT)]))
+    work = tmp_path / "work"
+    work.mkdir()
+
+    # train_rl knows the plugin's system (and lists it in --help)
+    assert "puck" in _run(["-m", "benchmarks.train_rl", "--help"], work, env).stdout
+    _run(["-m", "benchmarks.train_rl", "--env", "puck", "--algo", "sac", "--steps", "300",
+          "--eval-freq", "0", "--eval-episodes", "1", "--checkpoint-freq", "0",
+          "--no-progress"], work, env)
+    model = work / "benchmarks" / "models" / "puck" / "sac"
+    meta = json.loads((model / "metadata.json").read_text())
+    assert (model / "model.zip").is_file()
+    assert meta["env_id"] == "gp_puck/Puck-v0" and meta["training_steps"] == 300
+
+    # gp-bench in that directory: the trials run in a spawned worker process, which knows the
+    # system through the entry point and the model directory through the trial's spec
+    _run(["-m", "benchmarks", "--envs", "puck", "--controllers", "nominal-mpc,sac",
+          "--seeds", "0", "--workers", "1", "--no-progress"], work, env)
+    out = work / "benchmark-results" / "custom"
+    records = _records(out)
+    assert sorted(records) == ["nominal-mpc", "sac"]
+    for name, record in records.items():
+        assert record["status"] == "ok", (name, record["message"])
+        assert record["metrics"]["steps"] == 30 and np.isfinite(record["metrics"]["cost"])
+    sac = records["sac"]["metrics"]
+    assert sac["recipe_model_source"] == "user"
+    assert sac["recipe_model_dir"] == str(model.resolve())
+    assert sac["recipe_training_steps"] == 300
+    assert "recipe_model_source" not in records["nominal-mpc"]["metrics"]
+    assert (out / "report.md").is_file()
+
+    # from another directory, --models names the model directory (in this process: --workers 0)
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    _run(["-m", "benchmarks", "--envs", "puck", "--controllers", "sac", "--seeds", "1",
+          "--max-steps", "3", "--workers", "0", "--no-progress",
+          "--models", str(work / "benchmarks" / "models")], elsewhere, env)
+    record = _records(elsewhere / "benchmark-results" / "custom")["sac"]
+    assert record["status"] == "ok", record["message"]
+    assert record["metrics"]["recipe_model_dir"] == str(model.resolve())
+    assert record["spec"]["models"] == str((work / "benchmarks" / "models").resolve())
+
+    # without either, the run says where it looked and how to train one (status 0: recorded)
+    bare = tmp_path / "bare"
+    bare.mkdir()
+    _run(["-m", "benchmarks", "--envs", "puck", "--controllers", "sac", "--seeds", "0",
+          "--max-steps", "3", "--workers", "0", "--no-progress"], bare, env)
+    record = _records(bare / "benchmark-results" / "custom")["sac"]
+    assert record["status"] == "unavailable"
+    assert "python -m benchmarks.train_rl --env puck --algo sac" in record["message"]
