@@ -5,7 +5,7 @@ a package installed into a temporary directory: its modules plus a ``*.dist-info
 ``entry_points.txt`` declares the system module in the group ``gp_envs.systems``. With that
 directory on ``PYTHONPATH`` (and nothing else), subprocesses train an RL model with ``python -m
 benchmarks.train_rl --env puck`` into ``<cwd>/benchmarks/models`` and run it and
-``nominal-mpc`` with ``python -m benchmarks`` in that directory (the trials in a spawned worker
+``robust-mpc`` (the recommended recipe: initial data, learning) with ``python -m benchmarks`` in that directory (the trials in a spawned worker
 process), then with ``--models DIR`` from another directory.
 """
 
@@ -142,11 +142,11 @@ def test_own_system_trains_and_runs_through_the_command_lines(tmp_path: Path) ->
 
     # gp-bench in that directory: the trials run in a spawned worker process, which knows the
     # system through the entry point and the model directory through the trial's spec
-    _run(["-m", "benchmarks", "--envs", "puck", "--controllers", "nominal-mpc,sac",
+    _run(["-m", "benchmarks", "--envs", "puck", "--controllers", "robust-mpc,sac",
           "--seeds", "0", "--workers", "1", "--no-progress"], work, env)
     out = work / "benchmark-results" / "custom"
     records = _records(out)
-    assert sorted(records) == ["nominal-mpc", "sac"]
+    assert sorted(records) == ["robust-mpc", "sac"]
     for name, record in records.items():
         assert record["status"] == "ok", (name, record["message"])
         assert record["metrics"]["steps"] == 30 and np.isfinite(record["metrics"]["cost"])
@@ -154,7 +154,7 @@ def test_own_system_trains_and_runs_through_the_command_lines(tmp_path: Path) ->
     assert sac["recipe_model_source"] == "user"
     assert sac["recipe_model_dir"] == str(model.resolve())
     assert sac["recipe_training_steps"] == 300
-    assert "recipe_model_source" not in records["nominal-mpc"]["metrics"]
+    assert "recipe_model_source" not in records["robust-mpc"]["metrics"]
     assert (out / "report.md").is_file()
 
     # from another directory, --models names the model directory (in this process: --workers 0)
