@@ -52,7 +52,7 @@ test: $(VENV)/.installed
 	$(PY) -m pytest -q
 
 throughput: $(VENV)/.installed
-	$(PY) benchmarks/env_throughput.py
+	$(PY) benchmarks/studies/env_throughput.py
 
 clean:
 	rm -rf $(VENV) .pytest_cache .ruff_cache

@@ -14,6 +14,6 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 USER_MODELS_DIR = Path("benchmarks") / "models"
 """The user's RL model directory, relative to the current directory: ``python -m
-benchmarks.train_rl`` saves ``<env>/<algo>/`` there by default, and ``gp-bench`` looks there for
+benchmarks.rl.train`` saves ``<env>/<algo>/`` there by default, and ``gp-bench`` looks there for
 RL models (unless given ``--models DIR``) before the shipped ones; in a checkout's root it is
 the shipped directory itself."""

@@ -14,7 +14,7 @@ Examples::
 Your own system (a package declaring it under ``[project.entry-points."gp_envs.systems"]``,
 see ``docs/guide/own-system.md``) is an env like the built-in ones; the RL controllers load
 your models from ``--models DIR`` or ``./benchmarks/models`` (where ``python -m
-benchmarks.train_rl`` saves) before the shipped ones.
+benchmarks.rl.train`` saves) before the shipped ones.
 
 A run writes ``<out>/runs/<trial>.npz`` (one file per finished trial, written atomically),
 ``metrics.csv``, ``summary.csv``, PNG figures and ``report.md``; ``<out>`` defaults to
@@ -167,7 +167,7 @@ def build_parser() -> _Parser:
                    "gp_envs.register_system under [project.entry-points.\"gp_envs.systems\"] "
                    "in its pyproject.toml and is installed (docs/guide/own-system.md)")
     p.add_argument("--models", type=Path, metavar="DIR", help="directory of your RL models, "
-                   "<env>/<algo>/ folders as python -m benchmarks.train_rl writes them (default: "
+                   "<env>/<algo>/ folders as python -m benchmarks.rl.train writes them (default: "
                    f"./{USER_MODELS_DIR} if it exists); the RL controllers look there before "
                    "the shipped models, and each trial's record names the model it ran")
     p.add_argument("--scenarios", help="comma-separated scenario names (default: each env's "

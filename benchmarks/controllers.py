@@ -23,7 +23,7 @@ Dubins scenario that model is redrawn at every reset).
 RL recipes load a stable-baselines3 policy ``<env>/<algo>/`` (:class:`gp_agents.rl.RLAgent`)
 from the first model directory of :func:`rl_model_dirs` that has one: the user's (``gp-bench
 --models DIR``, else ``./benchmarks/models`` under the current directory, where
-``python -m benchmarks.train_rl`` saves), then the shipped ones (:data:`MODELS_DIR`, package
+``python -m benchmarks.rl.train`` saves), then the shipped ones (:data:`MODELS_DIR`, package
 data, so a non-editable install has them).
 """
 
@@ -376,7 +376,7 @@ def user_models_dir(models: str | Path | None = None) -> Path | None:
         if not path.is_dir():
             raise FileNotFoundError(f"--models {models}: no such directory; give the directory "
                                     "that holds <env>/<algo>/ model folders (python -m "
-                                    "benchmarks.train_rl writes ./benchmarks/models/<env>/<algo>)")
+                                    "benchmarks.rl.train writes ./benchmarks/models/<env>/<algo>)")
     else:
         path = USER_MODELS_DIR.resolve()
         if not path.is_dir():
@@ -517,7 +517,7 @@ def _build_rl(recipe: ControllerRecipe, env: gym.Env, env_name: str, seed: int,
         where = " or ".join(str(d / env_name / algo) for d in rl_model_dirs(models))
         raise ControllerUnavailableError(
             f"no {recipe.label} model for env {env_name} (looked in {where}); train one: "
-            f"python -m benchmarks.train_rl --env {env_name} --algo {algo} (saves to "
+            f"python -m benchmarks.rl.train --env {env_name} --algo {algo} (saves to "
             f"./{USER_MODELS_DIR}/{env_name}/{algo}; gp-bench --models DIR looks elsewhere)")
     try:
         import torch

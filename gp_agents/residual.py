@@ -32,11 +32,8 @@ parametric part of the residual, a handful of weights per output that the data i
 few samples and that extrapolates with the physics, and its Fourier features model the rest
 (second-order terms and effects outside the model's structure). ``tests/test_mpc.py`` fits
 ``S dp`` to the cart pole's true residual by least squares. The nominal model's structure is what
-the controller knows already; only its values are wrong. Measured by the ``robustness`` preset
-(recipes ``ssgp-mpc-sensitivities``, ``ssgp-mpc-adaptive`` and their linearized forms; README,
-*Online learning across the envelope*; ``ssgp-mpc-linearized-parametric`` met every target
-there). Off by default: the paper's recipe (``ssgp-mpc``) and its tables are measured without
-it.
+the controller knows already; only its values are wrong. The ``robust`` recipe
+(:func:`gp_agents.make_mpc`) uses it; off by default, since the paper's recipe is without it.
 """
 
 from __future__ import annotations

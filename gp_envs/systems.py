@@ -30,7 +30,7 @@ that calls :func:`register_system`), e.g. in the package's ``pyproject.toml``::
 
 so that every process that imports :mod:`gp_envs` knows them -- the benchmark's spawned worker
 processes included, which a registration in a script's ``__main__`` does not reach. With the
-package installed, ``python -m benchmarks.train_rl --env mysystem --algo sac`` trains an RL
+package installed, ``python -m benchmarks.rl.train --env mysystem --algo sac`` trains an RL
 baseline into ``./benchmarks/models/mysystem/sac`` and ``gp-bench --envs mysystem --controllers
 nominal-mpc,sac`` compares it with the MPC (``docs/guide/own-system.md``;
 ``tests/test_own_system.py`` does all of it with a small system).

@@ -95,7 +95,8 @@ def test_unknown_names_raise_clear_errors(capsys: pytest.CaptureFixture[str]) ->
         get_preset("nope")
     with pytest.raises(UnknownNameError, match="nominal-mpc"):
         TrialSpec("episode", "cartpole", "online", "lqr", 0).validate()
-    with pytest.raises(UnknownNameError, match="valid envs: cartpole, dubins, pendulum, quadrotor"):
+    with pytest.raises(UnknownNameError,
+                       match="valid envs: cartpole, dubins, pendulum, pilco_cartpole, quadrotor"):
         check_env_scenario("acrobot", "online")
     with pytest.raises(UnknownNameError, match="gp, online"):
         check_env_scenario("cartpole", "paper")
@@ -154,7 +155,7 @@ def test_missing_rl_model_is_recorded_as_not_available(tmp_path: Path) -> None:
     assert summary.ran == {spec.key: "unavailable"}
     message = load_record(trial_path(tmp_path, spec))["message"]
     assert "no SAC model for env quadrotor" in message
-    assert "python -m benchmarks.train_rl --env quadrotor --algo sac" in message  # the fix
+    assert "python -m benchmarks.rl.train --env quadrotor --algo sac" in message  # the fix
 
 
 def test_local_process_pool_runs_trials(tmp_path: Path) -> None:
@@ -264,11 +265,12 @@ def test_interleaved_episodes_are_the_same_trials_seed_by_seed() -> None:
 
 
 def test_the_residual_trace_records_what_the_nominal_model_missed() -> None:
-    """``benchmarks.residual_trace``: the step-0 row is the first transition of the benchmark's
+    """``benchmarks.studies.residual_trace``: the step-0 row is the first transition of the
+    benchmark's
     own episode (a separate build of it: same action, the residual model's target of that
     transition) with the *pretrained* learner's prediction (taken before it learns the
     sample); a recipe without a learner, an unknown name or a bad cell is a usage error."""
-    from benchmarks import residual_trace as rt
+    from benchmarks.studies import residual_trace as rt
     from benchmarks.trial import build_episode
 
     spec = TrialSpec("episode", "pendulum", "damped", "ssgp-mpc", 0)
@@ -295,10 +297,10 @@ def test_the_residual_trace_records_what_the_nominal_model_missed() -> None:
 
 
 def test_the_zero_order_gain_ratio_and_its_tables(tmp_path: Path) -> None:
-    """``benchmarks.rti_zero_order``: rho is the documented truth's gain (b = 0.3, the env
+    """``benchmarks.studies.rti_zero_order``: rho is the documented truth's gain (b = 0.3, the env
     docstring) over the reset's nominal draw; the band table counts what the rows say; a
     metrics file without the recipes' Dubins episodes, or no input at all, is a usage error."""
-    from benchmarks import rti_zero_order as zo
+    from benchmarks.studies import rti_zero_order as zo
 
     env = make_env("dubins", "paper")
     for seed in (3, 26):
@@ -327,10 +329,11 @@ def test_the_zero_order_gain_ratio_and_its_tables(tmp_path: Path) -> None:
 
 
 def test_the_levenberg_marquardt_sweep_counts_what_its_episodes_did() -> None:
-    """``benchmarks.rti_levenberg_marquardt``: one row per episode, the RTI steps it counts are
+    """``benchmarks.studies.rti_levenberg_marquardt``: one row per episode, the RTI steps it
+    counts are
     the planner's (rejected ones among them), the table has a row per recipe and ``mu``; a
     negative ``mu`` or an unknown recipe is a usage error."""
-    from benchmarks import rti_levenberg_marquardt as lm
+    from benchmarks.studies import rti_levenberg_marquardt as lm
 
     rows = lm.run("dubins", [0.0, 0.01], [0], ["nominal-mpc-rti"], progress=False)
     assert [(r["mu"], r["seed"]) for r in rows] == [(0.0, 0), (0.01, 0)]
@@ -369,10 +372,10 @@ def test_the_rti_preset_runs_every_learned_term_once_per_system() -> None:
 
 
 def test_the_learned_term_comparison_measures_split_latency_against_the_nominal() -> None:
-    """``benchmarks.rti_learned_term``: latency is act minus preparation over the replanning
+    """``benchmarks.studies.rti_learned_term``: latency is act minus preparation over the replanning
     steps after the first; the table's ratio is per seed against the reference recipe; a
     one-call RTI (no preparation) or an unknown system is refused."""
-    from benchmarks import rti_learned_term as lt
+    from benchmarks.studies import rti_learned_term as lt
 
     diag = {"replanned": np.array([1, 0, 1, 1, 1]), "act_time": np.array([9.0, 1, 3, 4, 5]),
             "preparation_time": np.array([1.0, 0, 1, 1, 1])}
@@ -406,7 +409,7 @@ def test_the_learned_term_comparison_measures_split_latency_against_the_nominal(
 def test_residual_decomposition_adds_up_to_the_prediction(linear: Any) -> None:
     """``residual_trace.decompose``: target mean + SE part + linear parts = ``predict``, and a
     column without a linear feature has no linear part."""
-    from benchmarks.residual_trace import decompose
+    from benchmarks.studies.residual_trace import decompose
     from gp_agents import IncrementalSSGP
 
     rng = np.random.default_rng(0)

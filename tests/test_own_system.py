@@ -4,9 +4,10 @@ A small system (a puck pushed along a line, with unmodeled friction and a mass e
 a package installed into a temporary directory: its modules plus a ``*.dist-info`` folder whose
 ``entry_points.txt`` declares the system module in the group ``gp_envs.systems``. With that
 directory on ``PYTHONPATH`` (and nothing else), subprocesses train an RL model with ``python -m
-benchmarks.train_rl --env puck`` into ``<cwd>/benchmarks/models`` and run it and
-``robust-mpc`` (the recommended recipe: initial data, learning) with ``python -m benchmarks`` in that directory (the trials in a spawned worker
-process), then with ``--models DIR`` from another directory.
+benchmarks.rl.train --env puck`` into ``<cwd>/benchmarks/models`` and run it and
+``robust-mpc`` (the recommended recipe: initial data, learning) with ``python -m benchmarks``
+in that directory (the trials in a spawned worker process), then with ``--models DIR`` from
+another directory.
 """
 
 from __future__ import annotations
@@ -131,8 +132,8 @@ def test_own_system_trains_and_runs_through_the_command_lines(tmp_path: Path) ->
     work.mkdir()
 
     # train_rl knows the plugin's system (and lists it in --help)
-    assert "puck" in _run(["-m", "benchmarks.train_rl", "--help"], work, env).stdout
-    _run(["-m", "benchmarks.train_rl", "--env", "puck", "--algo", "sac", "--steps", "300",
+    assert "puck" in _run(["-m", "benchmarks.rl.train", "--help"], work, env).stdout
+    _run(["-m", "benchmarks.rl.train", "--env", "puck", "--algo", "sac", "--steps", "300",
           "--eval-freq", "0", "--eval-episodes", "1", "--checkpoint-freq", "0",
           "--no-progress"], work, env)
     model = work / "benchmarks" / "models" / "puck" / "sac"
@@ -175,4 +176,4 @@ def test_own_system_trains_and_runs_through_the_command_lines(tmp_path: Path) ->
           "--max-steps", "3", "--workers", "0", "--no-progress"], bare, env)
     record = _records(bare / "benchmark-results" / "custom")["sac"]
     assert record["status"] == "unavailable"
-    assert "python -m benchmarks.train_rl --env puck --algo sac" in record["message"]
+    assert "python -m benchmarks.rl.train --env puck --algo sac" in record["message"]

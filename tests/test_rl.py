@@ -1,4 +1,4 @@
-"""Tests of the RL baseline (gp_agents.rl, benchmarks.train_rl): load, act, checks, wrappers,
+"""Tests of the RL baseline (gp_agents.rl, benchmarks.rl.train): load, act, checks, wrappers,
 training reward wrappers, resumable training."""
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ import torch
 from stable_baselines3.common.monitor import Monitor
 
 import gp_envs  # registers the envs
-from benchmarks.train_rl import CURVE_FIELDS, latest_checkpoint, train
+from benchmarks.rl.train import CURVE_FIELDS, latest_checkpoint, train
 from gp_agents.rl import (
     AngleFeatures,
     BoundedShiftReward,
@@ -406,7 +406,7 @@ def test_resumed_tqc_is_bit_identical_and_loads(tmp_path: Path) -> None:
 
 def test_killed_cli_run_resumes_to_the_total(tmp_path: Path) -> None:
     out = tmp_path / "run"
-    cmd = [sys.executable, "-m", "benchmarks.train_rl", "--env", "cartpole", "--scenario",
+    cmd = [sys.executable, "-m", "benchmarks.rl.train", "--env", "cartpole", "--scenario",
            "online", "--algo", "sac", "--steps", "200", "--seed", "1", "--eval-freq", "100",
            "--eval-episodes", "1", "--checkpoint-freq", "50", "--out", str(out)]
     env = dict(os.environ, PYTHONPATH=str(REPO), OMP_NUM_THREADS="1")
@@ -434,7 +434,7 @@ def test_killed_cli_run_resumes_to_the_total(tmp_path: Path) -> None:
 
 # --------------------------------------------------------------------------- multi-seed summary
 def test_median_iqr_ci() -> None:
-    from benchmarks.rl_summary import median_iqr_ci
+    from benchmarks.rl.summary import median_iqr_ci
 
     st = median_iqr_ci([5.0, 1.0, 3.0, 2.0, 4.0])
     assert (st["median"], st["q25"], st["q75"], st["n"]) == (3.0, 2.0, 4.0, 5)
@@ -445,7 +445,7 @@ def test_median_iqr_ci() -> None:
 
 
 def test_sample_efficiency_counts_a_seed_that_never_gets_there_as_beyond_the_budget() -> None:
-    from benchmarks.rl_summary import SeedRun, sample_efficiency_lines
+    from benchmarks.rl.summary import SeedRun, sample_efficiency_lines
 
     def run(seed: int, success: list[float], cost: list[float]) -> SeedRun:
         curve = [{"timesteps": 100.0 * i, "success_rate": s, "mean_cost": c}
@@ -473,8 +473,8 @@ def test_summary_from_tiny_runs(sac_runs: dict, tmp_path: Path,
                                 monkeypatch: pytest.MonkeyPatch) -> None:
     import shutil
 
-    import benchmarks.rl_summary as summary
-    from benchmarks.rl_runs import Plan
+    import benchmarks.rl.summary as summary
+    from benchmarks.rl.runs import Plan
 
     root = tmp_path / "runs"
     for seed in (0, 1):
@@ -504,7 +504,7 @@ def test_summary_from_tiny_runs(sac_runs: dict, tmp_path: Path,
 
 
 def test_the_summary_tabulates_the_first_evaluation_at_each_multiple() -> None:
-    from benchmarks.rl_summary import table_steps
+    from benchmarks.rl.summary import table_steps
 
     assert table_steps(np.array([0, 25_000, 50_000, 60_000])) == [0, 1, 2, 3]
     tqc = np.array([0, 5056, 24_960, 25_024, 49_984, 50_048, 51_000])
@@ -514,7 +514,7 @@ def test_the_summary_tabulates_the_first_evaluation_at_each_multiple() -> None:
 def test_curve_percentiles_are_over_the_seeds_at_each_step() -> None:
     """Percentiles at a step are NumPy's over the seeds evaluated there; a step fewer than
     ``min_seeds`` seeds reached is left out; the median curve is the 50th percentile."""
-    from benchmarks.rl_summary import SeedRun, curve_percentiles, median_curve
+    from benchmarks.rl.summary import SeedRun, curve_percentiles, median_curve
 
     runs = [SeedRun(k, Path("."), [{"timesteps": float(t), "mean_cost": c}
                                    for t, c in zip(steps, costs, strict=True)], None)
@@ -532,11 +532,11 @@ def test_curve_percentiles_are_over_the_seeds_at_each_step() -> None:
 
 
 def test_ship_copies_the_seed_with_the_lowest_last_training_cost(tmp_path: Path) -> None:
-    """``benchmarks.rl_ship``: of a finished plan, the seed whose *last* training evaluation
+    """``benchmarks.rl.ship``: of a finished plan, the seed whose *last* training evaluation
     is cheapest (not its best one) is copied, files byte for byte, with ``shipped_from`` in its
     metadata; a plan with an unfinished seed is refused."""
-    from benchmarks.rl_runs import Plan
-    from benchmarks.rl_ship import select_seed, ship
+    from benchmarks.rl.runs import Plan
+    from benchmarks.rl.ship import select_seed, ship
 
     plan = Plan(env="cartpole", scenario="online", algo="sac", hyperparams="sac-swingup",
                 steps=100, seeds=(0, 1, 2), root=tmp_path / "runs")
@@ -568,10 +568,10 @@ def test_ship_copies_the_seed_with_the_lowest_last_training_cost(tmp_path: Path)
 
 
 def test_eval_rl_rows_carry_intervals_over_the_episodes() -> None:
-    """``benchmarks.eval_rl.evaluate``: the Wilson interval of the success rate and the
+    """``benchmarks.rl.evaluate.evaluate``: the Wilson interval of the success rate and the
     bootstrap interval of the mean return contain their estimates (the shipped cart-pole SAC,
     5 episodes)."""
-    from benchmarks.eval_rl import evaluate
+    from benchmarks.rl.evaluate import evaluate
 
     row, episodes = evaluate(MODELS / "cartpole" / "sac", seeds=range(5))
     assert len(episodes) == 5 and row["episodes"] == 5

@@ -24,10 +24,9 @@ the data collection and the first sample (the robustness preset's *diff* cells) 
 within ``patience`` samples. After a declared change the history starts empty: nothing is
 surprising before ``history // 2`` errors of the new regime have been seen.
 
-Measured on the tuning seeds 0-9 only (``python -m benchmarks.learner_envelope``, cart pole and
-quadrotor; with the MPC's ``sensitivities=True`` and linear features): the default settings
-were the first tried and were not changed. The evaluation-seed results are the ``robustness``
-preset's (recipes ``ssgp-mpc-adaptive``, ``ssgp-mpc-linearized-adaptive``).
+The default settings were the first tried on the tuning seeds and were not changed
+(``docs/studies/learner_envelope.md``); the evaluation is the ``robustness`` preset's (recipes
+``ssgp-mpc-adaptive``, ``ssgp-mpc-linearized-adaptive``).
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ controlled than the nominal model is, and the MPC exploits its model where it is
 supported: on the quadrotor, the first plan puts the rotors at a corner of the control box, tens
 of the data's standard deviations away, where the other system's model is off by ~20 rad/s^2
 in the angular accelerations against the nominal model's 4-8, and the vehicle leaves its
-attitude box within 0.2 s (``python -m benchmarks.residual_trace``).
+attitude box within 0.2 s (``docs/studies/residual_trace.md``).
 
 :class:`NominalFallback` watches the learner's one-step prediction errors (each sample's error
 *before* it is learned, standardized) against those of the zero residual on the same samples,
@@ -19,15 +19,10 @@ first sample it is on. It is the statement "learning must never make it worse th
 nominal model" as a test on the newest data, not a guarantee: a learner that is better than zero
 on the last samples and wrong where the plan goes next is not caught.
 
-Measured on tuning seeds only (``python -m benchmarks.learner_envelope``, variant
-``gate-detect-ls5``, seeds 0-9, the linearized recipe with sensitivities and the change
-detector): the quadrotor with other-draw data 6/10 -> 8/10; every cart-pole (fixed truth,
-same- and other-draw data, wear) and quadrotor (fixed truth, payload, noise) episode
-identical in cost to the learner without it: the residual switched off only where it was worse.
-On the robustness preset's evaluation seeds (recipe ``ssgp-mpc-linearized-guarded``,
-``benchmarks/results/robustness-{quadrotor,cartpole}-guarded``): quadrotor other-draw data
-18/20 against 16/20, every other quadrotor and cart-pole cell with the successes of the
-recipe without it.
+On tuning seeds it rescued quadrotor episodes with another draw's data and left every other
+cart-pole and quadrotor episode as it was (the residual switched off only where it was worse);
+the decision record is *The learner across the envelope* (``docs/studies/learner_envelope.md``),
+the evaluation the ``robustness`` preset (recipe ``ssgp-mpc-linearized-guarded``).
 """
 
 from __future__ import annotations

@@ -20,12 +20,10 @@ LINEAR_LENGTH_SCALE_FLOOR = 5.0
 INPUT_SATURATION = 30.0
 """Standard deviations of the initial data at which the saturated recipe's learner saturates
 its standardized inputs (``online_ssgp(input_saturation=INPUT_SATURATION)``). Chosen on tuning
-seeds 0-9 of eight cart-pole and quadrotor cells (``python -m benchmarks.learner_envelope``,
-variants ``sat3`` ... ``sat30-gate-detect-ls5``): every level from 5 up kept the quadrotor on
-target with another draw's initial data (10/10 against 8/10 unsaturated), levels below 20 cost
-cart-pole swing-ups (5: 72/80 over all cells, 10: 77/80); 20 and 30 both gave 79/80, and 30
-the lower cart-pole cost. Not the :func:`online_ssgp` default: the other recipes' results were
-measured without it."""
+seeds of eight cart-pole and quadrotor cells: every level from 5 up kept the quadrotor on target
+with another draw's initial data, levels below 20 cost cart-pole swing-ups, and 30 had the lower
+cart-pole cost of 20 and 30 (``docs/studies/learner_envelope.md``). Not the :func:`online_ssgp`
+default: the paper's recipe is measured without it."""
 
 
 def online_ssgp(n_frequencies: int = 50, forgetting_factor: float = 0.995,
@@ -36,8 +34,8 @@ def online_ssgp(n_frequencies: int = 50, forgetting_factor: float = 0.995,
                 input_saturation: float | None = None) -> IncrementalSSGP:
     """The online learner of the paper's Algorithm 1, as this project's benchmarks use it.
 
-    Its defaults are the paper's learner, which the paper's recipes (``ssgp-mpc`` and every
-    fixed-truth table: quick, mpc-acceptance, the paper's tables, rti) run. The learner that
+    Its defaults are the paper's learner, the ``"paper"`` recipe's
+    (:func:`gp_agents.make_mpc`). The learner that
     held across the robustness envelope needs the MPC's parameter sensitivities as inputs and
     is :func:`parametric_ssgp` (its docstring says why and what it measured).
 
@@ -52,10 +50,8 @@ def online_ssgp(n_frequencies: int = 50, forgetting_factor: float = 0.995,
     on the quadrotor) the floor is five standard deviations: under observation noise the
     one-sigma floor let the fit on the noisy initial data put length scales on the floor along
     inputs that hardly vary in those data (the quadrotor's cos(psi), std 2e-5), and the learned
-    Jacobians reached thousands in physical units; the quadrotor then crashed on every tuning
-    seed (``python -m benchmarks.learner_envelope``, variants ``linear`` / ``linear-ls5``, cell
-    ``quad-noise``: 0/5 against 5/5, the other cells as they were but one ``quad-diff`` seed,
-    3/5 against 4/5).
+    Jacobians reached thousands in physical units; the quadrotor then crashed on every noisy
+    tuning seed (``docs/studies/learner_envelope.md``).
 
     Args:
         n_frequencies: ``r`` (``2r`` features per output).

@@ -29,8 +29,8 @@ starting from the right set needs one linear solve. :class:`ActiveSetQP` does th
    against 0.43 ms, on tuning seeds 100-102 in an ad-hoc timing not kept here.) The
    refinement is a second factorization (CasADi's ``solve`` factorizes at every call), so
    its threshold is the step's price: ``residual_tol`` 1e-7, chosen on tuning seeds
-   100-102 (``python -m benchmarks.rti_qp_solvers --residual-tols 1e-9,1e-8,1e-7,1e-6``,
-   ``benchmarks/results/rti_qp_solvers.md``), is the tightest of those values at which the
+   (decision record *The RTI's QP solver*, ``docs/studies/rti_qp_solvers.md``), is the
+   tightest of the values tried (1e-9 to 1e-6) at which the
    quadrotor's first solves mostly pass without it (median nominal RTI step 0.58 against
    0.82 ms at 1e-9), with the same closed-loop costs and rejected steps as 1e-9 on the cart
    pole, the quadrotor and the Dubins vehicle, and no more fallbacks (quadrotor 3 against 4).

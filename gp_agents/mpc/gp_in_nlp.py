@@ -4,7 +4,7 @@ The paper's OCP ("Gauss Pseudospectral Optimal Control" with the semi-parametric
 learner's exported mean ``casadi_mean(phi(x, u), theta)`` is part of the dynamics constraint at
 every node, its parameter vector ``theta`` (weights, frequencies, standardization) an NLP
 parameter, so learning never rebuilds the solver. IPOPT then differentiates the GP twice per
-iteration, which is most of an iteration's cost (``python -m benchmarks.profile_mpc``).
+iteration, which is most of an iteration's cost (``docs/studies/profile_mpc.md``).
 """
 
 from __future__ import annotations

@@ -30,12 +30,12 @@ the QP steps with the nominal model's Jacobian, so a control acting through a ga
 shrinks only for ``0 < g / g_nom < 2``. A nominal model that believes an actuator more than
 twice as weak as it is makes the iteration overshoot and alternate. On the Dubins vehicle,
 whose learned residual is the actuator loss itself, every episode that failed with this term
-had a gain ratio of at least 2.37, and none below 2 failed (66 seeds: the ``rti`` preset's 50
-and tuning seeds 100-115; ``python -m benchmarks.rti_zero_order``,
-``benchmarks/results/rti_zero_order.md``); the linearized term (the learned Jacobian in the QP)
-reached the goal on all of them. Use it where the nominal model's control gains are within a factor
-of two of the truth (on the cart pole and the quadrotor of the ``rti`` preset it matched the
-linearized term's outcomes), not where the learned term rescales an actuator by more.
+had a gain ratio of at least 2.37, and none below 2 failed; the linearized term (the learned
+Jacobian in the QP) reached the goal on all of them (decision record *The zero-order RTI term*,
+``docs/studies/rti_zero_order.md``). Use it where the nominal model's control gains are within
+a factor of two of the truth (on the cart pole and the quadrotor of the ``rti`` preset it
+matched the linearized term's outcomes), not where the learned term rescales an actuator by
+more.
 """
 
 from __future__ import annotations

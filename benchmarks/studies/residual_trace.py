@@ -9,7 +9,7 @@ initial data (the largest ``|z - mean| / std`` over the learner's inputs, with t
 standardization of its fit: the data's mean and spread). A learner whose error exceeds the
 target's own size is worse than the nominal model there. Outcomes only. Run (one core)::
 
-    OMP_NUM_THREADS=1 python -m benchmarks.residual_trace --env quadrotor --randomize 0.1 \\
+    OMP_NUM_THREADS=1 python -m benchmarks.studies.residual_trace --env quadrotor --randomize 0.1 \\
         --data diff --controller ssgp-mpc-linearized-sensitivities --seed 4 [--steps 40] \\
         [--outputs 3,4,5] [--out FILE.md]
 """
@@ -191,7 +191,7 @@ def main(argv: list[str] | None = None) -> None:
             raise ValueError(f"--outputs must be indices in 0..{len(outputs) - 1}")
     except ValueError as err:  # unknown names, bad cell values, a recipe that learns nothing
         parser.error(str(err))
-    command = "python -m benchmarks.residual_trace " + " ".join(
+    command = "python -m benchmarks.studies.residual_trace " + " ".join(
         sys.argv[1:] if argv is None else argv)
     text = (f"# Residual trace: {args.controller}, {args.env} `{scenario}`, "
             f"{cell.describe()}, seed {args.seed}\n\n`{command.strip()}`\n\n"

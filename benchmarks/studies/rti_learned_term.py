@@ -22,7 +22,7 @@ full linearization's episode run in lockstep with it (a paired count, which a ch
 machine's load does not tip the way it moves a ratio near a threshold); then the pattern term.
 Run (one core)::
 
-    OMP_NUM_THREADS=1 python -m benchmarks.rti_learned_term [--systems quadrotor] \\
+    OMP_NUM_THREADS=1 python -m benchmarks.studies.rti_learned_term [--systems quadrotor] \\
         [--seeds 100-109] [--dubins-seeds 100-115] [--compare RECIPE-split,...] [--out FILE.md]
 
 ``--compare`` runs further split-RTI recipes in the same lockstep (their rows take no part in
@@ -168,7 +168,8 @@ def main(argv: list[str] | None = None) -> None:
         for scenario in CASES[system]:
             rows += run(system, scenario, seeds, (*recipes(system), *compare),
                         progress=not args.no_progress)
-    command = (f"python -m benchmarks.rti_learned_term --systems {','.join(systems)} --seeds "
+    command = ("python -m benchmarks.studies.rti_learned_term "
+               f"--systems {','.join(systems)} --seeds "
                f"{','.join(map(str, args.seeds))} --dubins-seeds "
                f"{','.join(map(str, args.dubins_seeds))}"
                + (f" --compare {','.join(compare)}" if compare else ""))

@@ -13,7 +13,7 @@ cost within 2% of theirs at ``mu = 0``, and whose reference RTI (nominal; the ca
 oracle) loses no seed either, the one with the fewest rejected SSGP RTI steps; ties: the
 smaller ``mu``. Run (one core)::
 
-    OMP_NUM_THREADS=1 python -m benchmarks.rti_levenberg_marquardt [--system dubins] \\
+    OMP_NUM_THREADS=1 python -m benchmarks.studies.rti_levenberg_marquardt [--system dubins] \\
         [--mu 0,0.003,0.01,0.03] [--seeds 100-115] [--out FILE.md]
 """
 
@@ -31,7 +31,7 @@ from tqdm import tqdm
 import gp_envs
 from benchmarks.cli import parse_seeds, print_report
 from benchmarks.controllers import RTI_VARIANTS, build_controller, check_env_scenario, make_env
-from benchmarks.rti_qp_solvers import SCENARIOS
+from benchmarks.studies.rti_qp_solvers import SCENARIOS
 from gp_agents.agent import rollout
 
 RECIPES = ("nominal-mpc-rti", "nominal-mpc-rti-split", "ssgp-mpc-rti", "ssgp-mpc-rti-split")
@@ -43,7 +43,7 @@ TUNING_SEEDS = tuple(range(100, 116))
 def run(system: str, mus: list[float], seeds: list[int], recipes: list[str],
         progress: bool = True, scenario: str | None = None) -> list[dict[str, object]]:
     """One episode per (recipe, mu, seed) on ``scenario`` (default: the system's
-    :data:`~benchmarks.rti_qp_solvers.SCENARIOS` entry); returns one row per episode."""
+    :data:`~benchmarks.studies.rti_qp_solvers.SCENARIOS` entry); returns one row per episode."""
     jobs = [(r, mu, s) for r in recipes for mu in mus for s in seeds]
     return [dict(mu=mu, **rti_episode(system, recipe, seed, {"levenberg_marquardt": mu},
                                       scenario))
@@ -54,7 +54,7 @@ def rti_episode(system: str, recipe: str, seed: int,
                 settings: dict[str, object] | None = None,
                 scenario: str | None = None) -> dict[str, object]:
     """One episode of RTI recipe ``recipe`` on ``system``'s ``scenario`` (default its RTI
-    scenario, :data:`~benchmarks.rti_qp_solvers.SCENARIOS`) with env seed ``seed``
+    scenario, :data:`~benchmarks.studies.rti_qp_solvers.SCENARIOS`) with env seed ``seed``
     (``settings``: extra :class:`gp_agents.PseudospectralMPC` settings): ``recipe``, ``seed``,
     ``success``, ``cost``, the RTI steps the safety net ``rejected`` of ``rti_steps``, and the
     steps with a constraint violation (``contacts``)."""
@@ -92,7 +92,7 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--system", default="dubins", help="a registered system name")
     parser.add_argument("--scenario", help="the env scenario (default: the system's RTI "
-                        "scenario, benchmarks.rti_qp_solvers.SCENARIOS)")
+                        "scenario, benchmarks.studies.rti_qp_solvers.SCENARIOS)")
     parser.add_argument("--mu", default=",".join(f"{m:g}" for m in MUS),
                         help="comma-separated Levenberg-Marquardt terms, each >= 0")
     parser.add_argument("--seeds", type=parse_seeds,
@@ -125,7 +125,7 @@ def main(argv: list[str] | None = None) -> None:
     rows = run(args.system, mus, seeds, recipes, progress=not args.no_progress,
                scenario=scenario)
     text = (f"# RTI Levenberg-Marquardt term, {args.system} `{scenario}`\n\n"
-            f"`python -m benchmarks.rti_levenberg_marquardt --system {args.system} "
+            f"`python -m benchmarks.studies.rti_levenberg_marquardt --system {args.system} "
             f"--scenario {scenario} --mu {args.mu} --seeds {','.join(map(str, seeds))} "
             f"--recipes {','.join(recipes)}` (tuning seeds; one episode per recipe, mu and "
             f"seed)\n\n{table(rows)}\n")

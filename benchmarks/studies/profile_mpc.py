@@ -1,6 +1,6 @@
 """Where an MPC step's time goes: IPOPT iterations and time in each NLP function.
 
-Run: ``OMP_NUM_THREADS=1 python -m benchmarks.profile_mpc`` (under a minute). For every env
+Run: ``OMP_NUM_THREADS=1 python -m benchmarks.studies.profile_mpc`` (under a minute). For every env
 (default scenario, seed 0) it runs the nominal, oracle and SSGP MPC recipes of the benchmark
 suite (:mod:`benchmarks.controllers`) for ``--steps`` closed-loop steps and records, per solve,
 CasADi's statistics of the IPOPT call: iterations and the wall time spent evaluating the
@@ -31,7 +31,7 @@ from tqdm import tqdm
 from benchmarks.controllers import ENVS, build_controller, make_env
 from gp_agents.pseudospectral import GaussPseudospectralSolver
 
-RESULTS = Path(__file__).resolve().parent / "results" / "profile" / "README.md"
+RESULTS = Path(__file__).resolve().parents[1] / "results" / "profile" / "README.md"
 CONTROLLERS = ("nominal-mpc", "oracle-mpc", "ssgp-mpc", "ssgp-mpc-linearized",
                "ssgp-mpc-linearized-model-inputs")
 FUNCTIONS = ("nlp_f", "nlp_grad_f", "nlp_g", "nlp_jac_g", "nlp_hess_l")
@@ -115,7 +115,7 @@ def render(rows: Sequence[tuple[str, str, dict[str, float]]], steps: int) -> str
     lines = [
         "# Where an MPC step's time goes",
         "",
-        f"Command: `OMP_NUM_THREADS=1 python -m benchmarks.profile_mpc --steps {steps}`  ",
+        f"Command: `OMP_NUM_THREADS=1 python -m benchmarks.studies.profile_mpc --steps {steps}`  ",
         f"Python {platform.python_version()}, {platform.machine()}, {os.cpu_count()} CPU(s), "
         "one thread; each env's default scenario, seed 0; medians over the solves of one "
         "closed-loop run (the first solve, which builds the NLP, excluded). *NLP functions*: "

@@ -1,12 +1,12 @@
 """Evaluate every shipped RL baseline in the plain ``gym.make`` loop; tables and learning curves.
 
-For each ``benchmarks/models/<env>/<algo>/`` (written by :mod:`benchmarks.train_rl`) this loads
+For each ``benchmarks/models/<env>/<algo>/`` (written by :mod:`benchmarks.rl.train`) this loads
 the agent with :meth:`gp_agents.rl.RLAgent.load` into ``gym.make(env_id, scenario=...)`` and runs
 20 episodes with reset seeds 0..19 (reset, ``agent.act``, ``env.step``, ``agent.observe``).
 Success is ``info["is_success"]`` at the episode's last step. A policy that fails is reported as
 failing.
 
-Run: ``python -m benchmarks.eval_rl``. Writes ``benchmarks/results/rl/rl_eval.md``,
+Run: ``python -m benchmarks.rl.evaluate``. Writes ``benchmarks/results/rl/rl_eval.md``,
 ``rl_eval.csv`` (one row per model), ``rl_episodes.csv`` (one row per episode) and
 ``<env>_learning_curve.png`` (training-time evaluation success rate and mean return against env
 steps, with the final 20-episode evaluation marked).
@@ -38,7 +38,7 @@ import gp_envs  # noqa: F401  (registers the envs)
 from benchmarks.report import mean_ci, wilson_ci
 from gp_agents.rl import METADATA_FILE, RLAgent, rollout
 
-HERE = Path(__file__).resolve().parent
+HERE = Path(__file__).resolve().parents[1]
 MODELS = HERE / "models"
 OUT = HERE / "results" / "rl"
 SEEDS = range(20)
@@ -134,7 +134,7 @@ def write_markdown(rows: list[dict[str, Any]], path: Path) -> None:
     lines = [
         "# RL baselines (stable-baselines3): evaluation",
         "",
-        "Written by `python -m benchmarks.eval_rl`. Each shipped model is loaded with "
+        "Written by `python -m benchmarks.rl.evaluate`. Each shipped model is loaded with "
         "`RLAgent.load` into `gym.make(env_id, scenario=...)` and run for 20 episodes "
         "(reset seeds 0..19) with its deterministic policy in the plain loop; success is "
         "`info[\"is_success\"]` at the last step (goal tolerance held for the task's hold time). "
@@ -198,7 +198,7 @@ def main(argv: list[str] | None = None) -> None:
               f"{row['training_steps']:7d}  success {row['success_rate']:.2f}  "
               f"return {row['mean_return']:9.1f}  ({row['ends']})")
     if not rows:
-        raise SystemExit(f"no models under {args.models}; run benchmarks.train_rl first")
+        raise SystemExit(f"no models under {args.models}; run benchmarks.rl.train first")
     with open(args.out / "rl_eval.csv", "w", newline="") as fh:
         writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
         writer.writeheader()

@@ -10,7 +10,7 @@ at most 49: the robustness preset's evaluation seeds 200-249 are not for tuning)
 ``--out`` (episodes already there are skipped, so a run can be resumed or extended), then the
 Markdown table of all recorded episodes is printed::
 
-    OMP_NUM_THREADS=1 python -m benchmarks.learner_envelope --variants base,linear \\
+    OMP_NUM_THREADS=1 python -m benchmarks.studies.learner_envelope --variants base,linear \\
         --cells diff,same,fixed --seeds 0-4 --out benchmarks/results/learner_envelope.jsonl
 
 ``--table`` only prints the table of ``--out``. The measured episodes of issue 18 (seeds 0-9,
@@ -53,7 +53,7 @@ preset on evaluation seeds. (It is the default now: ``LINEAR_LENGTH_SCALE_FLOOR`
 floors of 0.01 / 0.05 / 0.1 standardized on top (``linear-ls5-noise01`` / ``-noise05`` /
 ``-noise1``): 3/10, 6/10, 4/10, different seeds failing each time: the noise floor is not
 what decides this cell. Every failure costs 3660-3720 (the termination penalty of an early
-crash). In the trace of seed 4 (``python -m benchmarks.residual_trace``) the model fitted
+crash). In the trace of seed 4 (``python -m benchmarks.studies.residual_trace``) the model fitted
 on the other draw's data is off by ~20 rad/s^2 in the angular accelerations at the first
 plan's corner of the control box (rotor thrusts 5, 0, 0, 5 N; inputs up to 47 standard
 deviations of the initial data away), against a nominal-model error of 4-8; after the first
@@ -89,7 +89,8 @@ evaluated by the ``robustness`` preset on its evaluation seeds.
 The saturated recipe missed Dubins goals there (47/50 on the fixed truth). On the Dubins tuning
 seeds 0-29 (``--variants own --controller ssgp-mpc-linearized-saturated --cells
 dub-fixed,dub-same,dub-diff``): 26/30, 29/30, 29/30, the misses stopped 0.12-0.25 m off.
-Why (``python -m benchmarks.residual_trace ... --decompose``): its linear features on the raw
+Why (``python -m benchmarks.studies.residual_trace ... --decompose``): its linear features on
+the raw
 inputs, collinear with the sensitivities on the initial data, extrapolate as a drift at rest.
 Linear features on the sensitivities only (``--variants own --controller
 ssgp-mpc-linearized-parametric``, :func:`gp_agents.parametric_ssgp`): 30/30 in all five Dubins

@@ -9,7 +9,8 @@ accepted RTI step and the 90th percentile of every replanning ``act`` (rejection
 A median alone hides a solver that is fast on easy QPs and slow or failing on the hard ones.
 Run (one core)::
 
-    OMP_NUM_THREADS=1 python -m benchmarks.rti_qp_solvers [--systems dubins] [--seeds 100,101]
+    OMP_NUM_THREADS=1 python -m benchmarks.studies.rti_qp_solvers [--systems dubins] \
+        [--seeds 100,101]
 
 ``--residual-tols 1e-9,1e-7`` runs every ``active-set:<plugin>`` solver once per value of its
 ``residual_tol`` (the linear solves' accuracy below which one refinement step, a second

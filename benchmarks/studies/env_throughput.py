@@ -1,6 +1,6 @@
 """Env step throughput (steps per second) of every registered env, on one core.
 
-Run: ``make throughput`` or ``OMP_NUM_THREADS=1 python benchmarks/env_throughput.py``.
+Run: ``make throughput`` or ``OMP_NUM_THREADS=1 python benchmarks/studies/env_throughput.py``.
 Steps go through ``gym.make`` (with Gymnasium's default wrappers) under a fixed random action
 sequence; the figure is the median over repeats. Writes ``benchmarks/results/env_throughput.md``.
 """
@@ -21,7 +21,7 @@ import numpy as np
 
 import gp_envs
 
-RESULTS = Path(__file__).resolve().parent / "results" / "env_throughput.md"
+RESULTS = Path(__file__).resolve().parents[1] / "results" / "env_throughput.md"
 
 
 def measure(env_id: str, steps: int, repeats: int) -> list[float]:
@@ -58,7 +58,8 @@ def main() -> None:
     lines = [
         "# Env step throughput",
         "",
-        f"Command: `OMP_NUM_THREADS=1 python benchmarks/env_throughput.py --steps {args.steps} "
+        "Command: `OMP_NUM_THREADS=1 python benchmarks/studies/env_throughput.py "
+        f"--steps {args.steps} "
         f"--repeats {args.repeats}`  ",
         f"Python {platform.python_version()}, {platform.machine()}, one core; steps through "
         "`gym.make` with random actions, median over repeats.",

@@ -1,7 +1,7 @@
 """Ship one seed of a finished multi-seed RL plan as the package's baseline policy.
 
 The RL rows of every benchmark load ``benchmarks/models/<env>/<algo>/``. This copies one seed's
-final model of a plan (:data:`benchmarks.rl_runs.PLANS`) there, chosen on the
+final model of a plan (:data:`benchmarks.rl.runs.PLANS`) there, chosen on the
 *training-evaluation* reset seeds only (1000..1019 of each seed's ``learning_curve.csv``,
 disjoint from the final evaluation's 0..19 and from every benchmark's episode seeds): the seed
 whose last training evaluation has the lowest mean cost, which gives RL its strongest final
@@ -9,7 +9,7 @@ policy without looking at the seeds it is judged on. No checkpoint is picked: it
 plan's final policy of that seed. Its ``metadata.json`` gains ``shipped_from`` (plan, seed,
 rule, every candidate's last training-evaluation cost)::
 
-    python -m benchmarks.rl_ship --plan cartpole_online_sac
+    python -m benchmarks.rl.ship --plan cartpole_online_sac
 """
 
 from __future__ import annotations
@@ -20,12 +20,12 @@ import shutil
 from pathlib import Path
 from typing import Any
 
-from benchmarks.rl_runs import PLANS, REPO, Plan
-from benchmarks.rl_summary import load_runs
+from benchmarks.rl.runs import PLANS, REPO, Plan
+from benchmarks.rl.summary import load_runs
 
 __all__ = ["RULE", "select_seed", "ship"]
 
-MODELS = Path(__file__).resolve().parent / "models"
+MODELS = Path(__file__).resolve().parents[1] / "models"
 FILES = ("model.zip", "vecnormalize.pkl", "metadata.json", "learning_curve.csv")
 RULE = ("lowest mean cost at the seed's last training evaluation (reset seeds 1000..1019; "
         "the final-evaluation seeds 0..19 are not looked at)")

@@ -1,8 +1,8 @@
 """Multi-seed RL summary: final evaluations, statistics over seeds, learning-curve figures.
 
-For a plan of :mod:`benchmarks.rl_runs` (``--plan``, default ``cartpole_online_sac``) this reads
+For a plan of :mod:`benchmarks.rl.runs` (``--plan``, default ``cartpole_online_sac``) this reads
 every seed's ``learning_curve.csv`` (deterministic evaluations during training on reset seeds
-1000.., written by :mod:`benchmarks.train_rl`) and, for each *finished* seed, loads its final
+1000.., written by :mod:`benchmarks.rl.train`) and, for each *finished* seed, loads its final
 policy with :meth:`gp_agents.rl.RLAgent.load` into the plain ``gym.make(env_id,
 scenario=...)`` and runs 20 deterministic episodes on reset seeds 0..19. No checkpoint selection:
 the evaluated policy is the one at the plan's last step.
@@ -12,7 +12,7 @@ plain env) and mean final ``info["distance_to_goal"]`` over its 20 episodes. Ove
 interquartile range and a percentile-bootstrap 95% CI of the median (10000 resamples of the
 seeds, NumPy generator seed 0).
 
-Run: ``python -m benchmarks.rl_summary [--plan NAME ...]``. Writes
+Run: ``python -m benchmarks.rl.summary [--plan NAME ...]``. Writes
 ``benchmarks/results/rl/summary.md``, ``<plan>_curves.png``, ``<plan>_final_eval.csv`` (one
 row per episode) and, per env, ``<env>_<scenario>_sample_efficiency.png`` (every plan's median
 and interquartile band over seeds against the MPC references' data use, one log axis).
@@ -43,11 +43,11 @@ import matplotlib.pyplot as plt
 from matplotlib.ticker import FormatStrFormatter, FuncFormatter
 
 import gp_envs  # noqa: F401  (registers the envs)
-from benchmarks.rl_runs import PLANS, REPO, Plan
-from benchmarks.train_rl import ENV_SHORT_NAMES
+from benchmarks.rl.runs import PLANS, REPO, Plan
+from benchmarks.rl.train import ENV_SHORT_NAMES
 from gp_agents.rl import METADATA_FILE, RLAgent, rollout
 
-OUT = Path(__file__).resolve().parent / "results" / "rl"
+OUT = Path(__file__).resolve().parents[1] / "results" / "rl"
 FINAL_SEEDS = range(20)
 N_BOOT = 10_000
 METRICS = (("success_rate", "success rate", "{:.2f}"), ("mean_cost", "mean cost", "{:.2f}"),
@@ -133,7 +133,7 @@ def median_iqr_ci(values: list[float], n_boot: int = N_BOOT) -> dict[str, float]
 
 
 TRAINING_EVAL_SEEDS = range(1000, 1020)
-"""Reset seeds of the training evaluations (:mod:`benchmarks.train_rl`); the MPC references
+"""Reset seeds of the training evaluations (:mod:`benchmarks.rl.train`); the MPC references
 of the sample-efficiency table run on the same ones."""
 MPC_REFERENCES = ("oracle-mpc", "ssgp-mpc")
 COST_MARGIN = 1.1
@@ -361,7 +361,7 @@ def plan_section(name: str, plan: Plan, runs: list[SeedRun], png: str,
               f"- {plan.steps} env steps per seed; seeds {list(plan.seeds)}: "
               f"**{len(fin)} finished**, {len(runs) - len(fin)} in progress, "
               f"{len(plan.seeds) - len(runs)} not started",
-              f"- run: `python -m benchmarks.rl_runs --plan {name}` (resumes, skips finished "
+              f"- run: `python -m benchmarks.rl.runs --plan {name}` (resumes, skips finished "
               f"seeds); one seed: `{' '.join(['python', *plan.command(name, plan.seeds[0])])}`",
               ""]
     if meta:
@@ -425,10 +425,10 @@ def write_summary(names: list[str], out: Path = OUT) -> Path:
     torch.set_num_threads(1)
     out.mkdir(parents=True, exist_ok=True)
     lines = ["# RL baselines over seeds", "",
-             "Written by `python -m benchmarks.rl_summary "
+             "Written by `python -m benchmarks.rl.summary "
              + " ".join(f"--plan {n}" for n in names)
              + ("" if out == OUT else f" --out {_rel(out)}") + "` from the runs of "
-             "`python -m benchmarks.rl_runs` (models in `benchmarks/models/runs/<plan>/seed<K>/`)."
+             "`python -m benchmarks.rl.runs` (models in `benchmarks/models/runs/<plan>/seed<K>/`)."
              " Every policy is loaded with `RLAgent.load` into `gym.make(env_id, scenario=...)` "
              "and run deterministically in the plain loop. Success: `info[\"is_success\"]` at "
              "the last step (goal tolerance held for the hold time); cost: `-return` of the "
@@ -508,8 +508,8 @@ def write_pilot(names: list[str], out: Path = OUT / "pilot") -> Path:
     fig.savefig(out / "pilot.png", dpi=110)
     plt.close(fig)
     lines = ["# Pilot: training reward and time feature for the cart-pole SAC", "",
-             "Written by `python -m benchmarks.rl_summary --pilot` from the learning curves of "
-             "`python -m benchmarks.rl_runs " + " ".join(f"--plan {n}" for n in names) + "`. "
+             "Written by `python -m benchmarks.rl.summary --pilot` from the learning curves of "
+             "`python -m benchmarks.rl.runs " + " ".join(f"--plan {n}" for n in names) + "`. "
              "Training-evaluation seeds only (reset seeds 1000..1019, 20 deterministic episodes "
              "per point, on the plain env: the cost is `-return` of the task's reward whatever "
              "the training reward); the final-evaluation seeds 0..19 are not used here.", "",

@@ -2,19 +2,19 @@
 
 A *plan* (:data:`PLANS`) fixes env, scenario, algorithm, hyperparameter preset, training
 wrappers, env steps and seeds. For each seed in turn the driver runs
-``python -m benchmarks.train_rl ... --out <plan dir>/seed<K>`` as a subprocess (one core:
+``python -m benchmarks.rl.train ... --out <plan dir>/seed<K>`` as a subprocess (one core:
 ``OMP_NUM_THREADS=1``; the script sets ``torch.set_num_threads(1)``) with its output appended to
 ``benchmarks/results/rl/logs/<plan>_seed<K>.log``. A seed whose ``metadata.json`` records the
 plan's steps is skipped; an unfinished one resumes from its last checkpoint (train_rl's own
 resume), so re-running the same driver command after an interruption continues where it was
 (``--seeds 0 2 4`` and ``--seeds 1 3`` in two drivers train on both cores)::
 
-    nohup python -m benchmarks.rl_runs --plan cartpole_online_sac --commit --summary \\
+    nohup python -m benchmarks.rl.runs --plan cartpole_online_sac --commit --summary \\
         >> benchmarks/results/rl/logs/driver.log 2>&1 &
 
 ``--commit`` commits each finished seed's model, metadata and learning curve (never
 checkpoints) on the current branch with a message naming the command; ``--summary`` then
-regenerates ``benchmarks/results/rl/summary.md`` and its figures (:mod:`benchmarks.rl_summary`)
+regenerates ``benchmarks/results/rl/summary.md`` and its figures (:mod:`benchmarks.rl.summary`)
 and commits them too. The driver's pid is in ``benchmarks/results/rl/logs/driver.pid``.
 """
 
@@ -30,7 +30,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
+HERE = Path(__file__).resolve().parents[1]
 REPO = HERE.parent
 RUNS = HERE / "models" / "runs"
 PILOTS = HERE / "results" / "rl" / "pilot"
@@ -42,7 +42,7 @@ class Plan:
     """One training configuration over several seeds.
 
     Attributes:
-        env, scenario, algo, hyperparams: as ``benchmarks.train_rl``'s options.
+        env, scenario, algo, hyperparams: as ``benchmarks.rl.train``'s options.
         steps: env steps per seed.
         seeds: training seeds, run in this order.
         reward: ``"task"`` or ``"bounded-shift"``.
@@ -76,11 +76,11 @@ class Plan:
         return root / f"seed{seed}" if self.seed_dirs else root
 
     def command(self, name: str, seed: int) -> list[str]:
-        """The ``benchmarks.train_rl`` argument list for ``seed`` (paths repo-relative)."""
+        """The ``benchmarks.rl.train`` argument list for ``seed`` (paths repo-relative)."""
         out = self.run_dir(name, seed)
         if out.is_relative_to(REPO):
             out = out.relative_to(REPO)
-        cmd = ["-m", "benchmarks.train_rl", "--env", self.env, "--scenario", self.scenario,
+        cmd = ["-m", "benchmarks.rl.train", "--env", self.env, "--scenario", self.scenario,
                "--algo", self.algo, "--hyperparams", self.hyperparams, "--reward", self.reward,
                "--steps", str(self.steps), "--seed", str(seed), "--eval-freq",
                str(self.eval_freq), "--eval-episodes", str(self.eval_episodes),
@@ -283,9 +283,9 @@ def main(argv: list[str] | None = None) -> None:
                                           "learning_curve.csv")],
                        f"RL run {name} seed {seed}: {meta['training_steps']} env steps, "
                        f"{meta['train_time_s']:.0f} s\n\n{meta['command']}\n"
-                       f"(driver: python -m benchmarks.rl_runs --plan {name})")
+                       f"(driver: python -m benchmarks.rl.runs --plan {name})")
             if args.summary and not name.startswith("pilot"):
-                res = subprocess.run([args.python, "-m", "benchmarks.rl_summary", "--plan",
+                res = subprocess.run([args.python, "-m", "benchmarks.rl.summary", "--plan",
                                       name], cwd=REPO, capture_output=True, text=True,
                                      env=dict(os.environ, OMP_NUM_THREADS="1",
                                               PYTHONPATH=str(REPO)))
@@ -295,7 +295,7 @@ def main(argv: list[str] | None = None) -> None:
                     commit([out / "summary.md", out / f"{name}_curves.png",
                             out / f"{name}_final_eval.csv"],
                            f"RL summary for {name} after seed {seed}\n\n"
-                           f"python -m benchmarks.rl_summary --plan {name}")
+                           f"python -m benchmarks.rl.summary --plan {name}")
     log(f"driver done; not finished: {failures or 'none'}")
 
 

@@ -19,7 +19,7 @@ Jacobian): run here on the given seeds (default: the RTI tuning seeds 100-115), 
 from a report's ``metrics.csv`` (``--metrics``, e.g. the ``rti`` preset's evaluation seeds).
 Outcomes only: the machine's load changes no number here. Run (one core)::
 
-    OMP_NUM_THREADS=1 python -m benchmarks.rti_zero_order [--seeds 100-115] \\
+    OMP_NUM_THREADS=1 python -m benchmarks.studies.rti_zero_order [--seeds 100-115] \\
         [--metrics benchmarks/results/rti/metrics.csv] [--out FILE.md]
 """
 
@@ -38,7 +38,7 @@ from tqdm import tqdm
 import gp_envs
 from benchmarks.cli import parse_seeds, print_report
 from benchmarks.controllers import make_env
-from benchmarks.rti_levenberg_marquardt import TUNING_SEEDS, rti_episode
+from benchmarks.studies.rti_levenberg_marquardt import TUNING_SEEDS, rti_episode
 
 __all__ = ["RECIPES", "STABLE_RATIO", "gain_ratio", "metrics_rows", "run", "tables"]
 
@@ -64,7 +64,7 @@ def gain_ratio(seed: int) -> dict[str, float]:
 def run(seeds: Iterable[int], recipes: Iterable[str] = RECIPES,
         progress: bool = True) -> list[dict[str, object]]:
     """One episode per (recipe, seed) on the Dubins vehicle (system defaults); one row each
-    (:func:`benchmarks.rti_levenberg_marquardt.rti_episode`) with ``source="run"``."""
+    (:func:`benchmarks.studies.rti_levenberg_marquardt.rti_episode`) with ``source="run"``."""
     jobs = [(r, s) for r in recipes for s in seeds]
     return [dict(source="run", **rti_episode("dubins", recipe, seed))
             for recipe, seed in tqdm(jobs, disable=not progress, desc="dubins zero-order")]
@@ -152,7 +152,7 @@ def main(argv: list[str] | None = None) -> None:
         rows += run(args.seeds, progress=not args.no_progress)
     if not rows:
         parser.error("nothing to report: give --seeds or --metrics")
-    command = "python -m benchmarks.rti_zero_order --seeds " + (
+    command = "python -m benchmarks.studies.rti_zero_order --seeds " + (
         ",".join(map(str, args.seeds)) or "none") + "".join(f" --metrics {p}" for p in args.metrics)
     text = (f"# The zero-order learned term's RTI against the true-to-nominal control gain, "
             f"Dubins\n\n`{command}` (run: one episode per recipe and seed, system defaults; "

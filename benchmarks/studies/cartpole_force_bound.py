@@ -7,7 +7,7 @@ pseudospectral feasibility solve (minimum control energy, several cold starts). 
 feasible bound of the *true* model justifies the env's force bound; the nominal model's shows
 how much the missing damping makes a controller underestimate the force it needs.
 
-Run: ``OMP_NUM_THREADS=1 python benchmarks/cartpole_force_bound.py``
+Run: ``OMP_NUM_THREADS=1 python benchmarks/studies/cartpole_force_bound.py``
 Writes ``benchmarks/results/cartpole_force_bound.md``.
 """
 
@@ -28,7 +28,7 @@ from gp_agents.pseudospectral import (
 )
 from gp_envs.model import ControlModel
 
-RESULTS = Path(__file__).resolve().parent / "results" / "cartpole_force_bound.md"
+RESULTS = Path(__file__).resolve().parents[1] / "results" / "cartpole_force_bound.md"
 
 
 def feasible(model: ControlModel, f_max: float, duration: float, n_intervals: int = 8,
@@ -88,7 +88,7 @@ def main() -> None:
     lines = [
         "# Cart-pole swing-up: smallest feasible force bound",
         "",
-        "Command: `OMP_NUM_THREADS=1 python benchmarks/cartpole_force_bound.py`  ",
+        "Command: `OMP_NUM_THREADS=1 python benchmarks/studies/cartpole_force_bound.py`  ",
         "Swing-up from hanging at rest at the centre to upright at rest at the centre in T "
         "seconds with |x| <= 2.5 m; bisection to 0.5 N on a Gauss pseudospectral feasibility "
         "solve (8 intervals x 8 LG nodes, minimum control energy, 4 cold starts). "
