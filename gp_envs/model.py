@@ -97,7 +97,8 @@ class Task:
         R: (m, m) control weight.
         Qf: (n, n) terminal weight for finite-horizon controllers.
         u_ref: (m,) control the cost is centred on (e.g. nominal hover thrust).
-        goal_tolerance: (n,) per-component |x_i - goal_i| tolerance; ``inf`` means "not checked".
+        goal_tolerance: (n,) per-component ``abs(x_i - goal_i)`` tolerance; ``inf`` means "not
+            checked".
         hold_time: seconds the state must stay within tolerance for the task to count as success.
         duration: episode length in seconds (the time limit).
         obstacles: obstacles to keep clear of (position = first two state components).

@@ -14,9 +14,9 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
-import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -26,84 +26,16 @@ from benchmarks.runner import load_record
 
 ROOT = Path(__file__).resolve().parent.parent
 
-PHYSICS = '''
-"""Puck on a line: ``pdot = v``, ``vdot = (F - c v) / m`` (mass m, viscous friction c)."""
-
-import casadi as ca
-
-from gp_envs.physics.ranges import ParamRange
-
-PARAM_RANGES = {"m": ParamRange.positive("mass, kg"),
-                "c": ParamRange.nonnegative("viscous friction, N s/m")}
-PARAM_NAMES = tuple(PARAM_RANGES)
-STATE_NAMES = ("p", "v")
-STATE_UNITS = ("m", "m/s")
-CONTROL_NAMES = ("F",)
-CONTROL_UNITS = ("N",)
-
-
-def ode(x, u, p):
-    return ca.vertcat(x[1], (u[0] - p[1] * x[1]) / p[0])
-'''
-
-ENV = '''
-"""The puck's env and its registration (the module the entry point names)."""
-
-from typing import ClassVar
-
-import numpy as np
-
-from gp_envs.base import GPEnv, Scenario
-from gp_envs.model import Task, diag
-from gp_envs.systems import PlanningDefaults, System, register_system
-from gp_puck import puck
-
-
-class PuckEnv(GPEnv):
-    physics = puck
-    SCENARIOS: ClassVar[dict[str, Scenario]] = {
-        "friction": Scenario(description="unmodeled friction, 20% mass error",
-                             true={"m": 1.2, "c": 0.5}, nominal={"m": 1.0, "c": 0.0},
-                             u_lb=(-2.0,), u_ub=(2.0,))}
-    DEFAULT_SCENARIO = "friction"
-    DT = 0.1
-    SUBSTEPS = 2
-    X_LB = np.array([-3.0, -5.0])
-    X_UB = np.array([3.0, 5.0])
-    DYNAMIC_INDICES = (1,)
-
-    def _task(self):
-        return Task(goal=np.array([1.0, 0.0]), Q=diag([10.0, 1.0]), R=diag([0.01]),
-                    Qf=diag([100.0, 10.0]), u_ref=np.zeros(1),
-                    goal_tolerance=np.array([0.05, np.inf]), hold_time=0.5, duration=3.0)
-
-    def _initial_state(self):
-        return self.np_random.uniform(-0.05, 0.05, size=2)
-
-
-def data_policy(model, rng):
-    target = rng.uniform(-1.0, 1.0)
-
-    def policy(obs, t):
-        return np.array([2.0 * (target - obs[0]) - obs[1]])
-
-    return policy
-
-
-register_system(System(
-    name="puck", env_id="gp_puck/Puck-v0", entry_point="gp_puck.env:PuckEnv",
-    max_episode_steps=30, data_policy=data_policy,
-    planning=PlanningDefaults(horizon=1.0, n_nodes=6, n_intervals=1, nodes_per_period=3)))
-'''
+EXAMPLE = ROOT / "examples" / "own_system" / "gp_puck"
+"""The user guide's example system (a puck on a line), installed here as a user would."""
 
 
 def _install_plugin(site: Path) -> None:
     """Write package ``gp_puck`` and its distribution metadata into ``site``."""
     pkg = site / "gp_puck"
     pkg.mkdir(parents=True)
-    (pkg / "__init__.py").write_text("")
-    (pkg / "puck.py").write_text(textwrap.dedent(PHYSICS))
-    (pkg / "env.py").write_text(textwrap.dedent(ENV))
+    for module in ("__init__.py", "puck.py", "env.py"):
+        shutil.copy(EXAMPLE / module, pkg / module)
     dist = site / "gp_puck-0.1.dist-info"
     dist.mkdir()
     (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: gp-puck\nVersion: 0.1\n")

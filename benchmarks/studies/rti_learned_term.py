@@ -1,5 +1,5 @@
 """Which learned term the SSGP real-time iteration should use, per system (the
-``rti_learned_dynamics`` of each system's :class:`gp_envs.systems.PlanningDefaults`).
+``learned_term`` of each system's :class:`gp_agents.mpc.tuning.RTITuning`).
 
 The split RTI (``scheme="rti-split"``) of a reference MPC (the nominal one; on the cart pole,
 whose nominal RTI steps are all rejected because its model cannot swing the pole up, the oracle

@@ -1,5 +1,5 @@
 """Which Levenberg-Marquardt term the real-time iteration should use, per system (the
-``levenberg_marquardt`` of each system's :class:`gp_envs.systems.PlanningDefaults`).
+``levenberg_marquardt`` of each system's :class:`gp_agents.mpc.tuning.RTITuning`).
 
 The RTI recipes (nominal and SSGP, one call and split into preparation and feedback) with
 ``levenberg_marquardt=mu`` for each ``mu`` given, on tuning seeds (default 100-115, disjoint

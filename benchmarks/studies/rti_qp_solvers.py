@@ -1,5 +1,5 @@
 """Which QP solver the real-time iteration's step should use, per system (the ``qp_solver`` of
-each system's :class:`gp_envs.systems.PlanningDefaults`).
+each system's :class:`gp_agents.mpc.tuning.RTITuning`).
 
 The nominal MPC with ``scheme="rti"``, one agent per QP solver, all in lockstep on envs reset
 with the same seed (so a change of the machine's load slows them alike), on tuning seeds

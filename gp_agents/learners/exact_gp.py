@@ -96,9 +96,10 @@ class ExactGP(BaseGPLearner):
         random_state: seed of the restarts and of the subset.
 
     Fitted attributes:
-        hyperparameters_, standardizer_, X_train_ (N, d_in, standardized), alpha_ (d_out, N),
-        L_ (d_out, N, N) lower Cholesky factors of K_y, log_marginal_likelihood_ (d_out,),
-        n_features_in_, n_outputs_, n_samples_seen_.
+        ``hyperparameters_``, ``standardizer_``, ``X_train_`` (N, d_in, standardized),
+        ``alpha_`` (d_out, N), ``L_`` (d_out, N, N) lower Cholesky factors of K_y,
+        ``log_marginal_likelihood_`` (d_out,), ``n_features_in_``, ``n_outputs_``,
+        ``n_samples_seen_``.
     """
 
     def __init__(

@@ -104,10 +104,10 @@ class IncrementalSSGP(SSGP):
         n_frequencies: ``r`` (``2r`` features per output).
         forgetting_factor: ``lambda`` in (0, 1]; 1 keeps every sample with equal weight.
         prior_refresh: prior coordinates restored per sample (``m`` in the module docstring).
-        hyperparameters, bounds, n_restarts, max_iter, max_optimization_samples, normalize,
-        random_state, linear_features, linear_std, input_saturation: as in :class:`SSGP`
-            (used once, by :meth:`fit`; with linear features the state has ``2r + d_in``
-            coordinates).
+        hyperparameters: as in :class:`SSGP`, as are ``bounds``, ``n_restarts``, ``max_iter``,
+            ``max_optimization_samples``, ``normalize``, ``random_state``,
+            ``linear_features``, ``linear_std`` and ``input_saturation`` (used once, by
+            :meth:`fit`; with linear features the state has ``2r + d_in`` coordinates).
         change_detector: a :class:`ChangeDetector` (copied at :meth:`fit`), or None: restart
             from the new regime's samples when the learned function changes (module
             docstring).

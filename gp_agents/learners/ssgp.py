@@ -195,11 +195,12 @@ class SSGP(BaseGPLearner):
             hyperparameters copied from an :class:`ExactGP` (whose inputs are not saturated).
 
     Fitted attributes:
-        hyperparameters_, standardizer_, base_frequencies_ (d_out, d_in, r), omega_
-        (d_out, d_in, r), cholesky_factor_ (d_out, 2r, 2r) upper ``R`` with ``A = R^T R``,
-        b_ (d_out, 2r), weights_ (d_out, 2r), n_features_in_, n_outputs_, n_samples_seen_,
-        linear_std_ (d_out,) ``sigma_l`` or None (``2r`` reads ``2r + d_in`` with linear
-        features), linear_mask_ (d_in,) 0/1 mask of the columns with a linear feature or None.
+        ``hyperparameters_``, ``standardizer_``, ``base_frequencies_`` (d_out, d_in, r),
+        ``omega_`` (d_out, d_in, r), ``cholesky_factor_`` (d_out, 2r, 2r) upper ``R`` with
+        ``A = R^T R``, ``b_`` (d_out, 2r), ``weights_`` (d_out, 2r), ``n_features_in_``,
+        ``n_outputs_``, ``n_samples_seen_``, ``linear_std_`` (d_out,) ``sigma_l`` or None
+        (``2r`` reads ``2r + d_in`` with linear features), ``linear_mask_`` (d_in,) 0/1 mask of
+        the columns with a linear feature or None.
     """
 
     def __init__(

@@ -32,10 +32,9 @@ twice as weak as it is makes the iteration overshoot and alternate. On the Dubin
 whose learned residual is the actuator loss itself, every episode that failed with this term
 had a gain ratio of at least 2.37, and none below 2 failed; the linearized term (the learned
 Jacobian in the QP) reached the goal on all of them (decision record *The zero-order RTI term*,
-``docs/studies/rti_zero_order.md``). Use it where the nominal model's control gains are within
-a factor of two of the truth (on the cart pole and the quadrotor of the ``rti`` preset it
-matched the linearized term's outcomes), not where the learned term rescales an actuator by
-more.
+``docs/studies/rti_zero_order.md``). Use it only where the nominal model's control gains are
+within a factor of two of the truth, not where the learned term rescales an actuator by more;
+no system's tuning uses it.
 """
 
 from __future__ import annotations
