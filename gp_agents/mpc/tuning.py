@@ -41,6 +41,10 @@ from gp_envs.systems import SYSTEMS
 __all__ = ["RTI_TUNING", "RTITuning", "register_rti_tuning", "rti_tuning"]
 
 
+RECOVERY_ITERATIONS = 3
+"""Recovery iterations of every system's RTI (the study ``rti_recovery``)."""
+
+
 @dataclass(frozen=True)
 class RTITuning:
     """How the real-time iteration solves on one system (module docstring).
@@ -52,11 +56,15 @@ class RTITuning:
         learned_term: how a learned residual enters the QP when the MPC names none: a name of
             :data:`gp_agents.mpc.controller.LEARNED_TERMS` (``"linearized"``,
             ``"linearized-pattern"``, ``"zero-order"``).
+        recovery_iterations: further SQP iterations a step with a too large constraint
+            violation may take before the converged fallback (:class:`~gp_agents.mpc.settings.
+            RTI`'s ``recovery_iterations``).
     """
 
     qp_solver: str = "active-set:proxqp"
     levenberg_marquardt: float = 0.0
     learned_term: str = "linearized"
+    recovery_iterations: int = RECOVERY_ITERATIONS
 
     def __post_init__(self) -> None:
         if not (isinstance(self.qp_solver, str) and self.qp_solver):
@@ -65,6 +73,9 @@ class RTITuning:
         if not (np.isfinite(self.levenberg_marquardt) and self.levenberg_marquardt >= 0):
             raise ValueError(f"RTITuning: levenberg_marquardt must be a finite number >= 0, "
                              f"got {self.levenberg_marquardt!r}")
+        if isinstance(self.recovery_iterations, bool) or int(self.recovery_iterations) < 0:
+            raise ValueError(f"RTITuning: recovery_iterations must be an int >= 0, got "
+                             f"{self.recovery_iterations!r}")
         if not (isinstance(self.learned_term, str) and self.learned_term):
             raise ValueError(f"RTITuning: learned_term must be a learned-term name, got "
                              f"{self.learned_term!r}")
