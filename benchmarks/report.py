@@ -55,7 +55,8 @@ METRIC_COLUMNS = (
     "success", "success_held", "at_goal_final", "time_to_success_s", "cost", "final_distance",
     "final_position_error", "recovery_s", "violations", "termination", "steps", "data_steps",
     "act_median_ms", "act_p95_ms", "act_max_ms", "solver_failures", "fallbacks", "solves",
-    "capped_solves", "learner_changes", "rti_rejected", "degraded", "plan_plant_defect",
+    "capped_solves", "learner_changes", "rti_steps", "rti_recovered", "rti_recovery_iterations",
+    "rti_rejected", "degraded", "plan_plant_defect",
     "build_s", "episode_s", "max_steps", "message",
 )
 TIME_COLUMNS = ("act_median_ms", "act_p95_ms", "act_max_ms", "build_s", "episode_s")
@@ -72,7 +73,8 @@ SUMMARY_COLUMNS = (
     "episodes_with_violation", "data_steps_mean", "act_median_ms", "act_p95_ms", "act_max_ms",
     "solver_failures", "fallbacks", "success_held_rate", "plan_plant_defect_max",
     "solve_median_ms", "outside_median_ms", "latency_median_ms", "preparation_median_ms",
-    "accepted_latency_median_ms",
+    "accepted_latency_median_ms", "rti_steps", "rti_recovered", "rti_rejected",
+    "rti_rejected_fraction",
 )
 PACKAGES = ("gp-pseudospectral-mpc", "numpy", "scipy", "casadi", "gymnasium", "matplotlib",
             "torch", "stable-baselines3", "do-mpc", "dask", "distributed", "tqdm")
@@ -390,8 +392,42 @@ def summarize(experiment: str, trials: Sequence[Trial]) -> list[dict[str, Any]]:
                                 if m and m[0]["family"] == "mpc" else math.nan),
             "fallbacks": (int(sum(x["fallbacks"] for x in m))
                           if m and m[0]["family"] == "mpc" else math.nan),
+            **_rti_counts(m),
         })
     return rows
+
+
+def _rti_counts(m: list[dict[str, Any]]) -> dict[str, Any]:
+    """A cell's real-time-iteration paths summed over its episodes: steps taken, recovered
+    by further SQP iterations, rejected (replaced by a converged solve) and the rejected
+    fraction of the steps (NaN without RTI steps, or for records from before these counts)."""
+    keys = ("rti_steps", "rti_recovered", "rti_rejected")
+    if not m or any(not _finite_number(x.get(k)) for x in m for k in keys):
+        return {**dict.fromkeys(keys, math.nan), "rti_rejected_fraction": math.nan}
+    out = {k: int(sum(int(x[k]) for x in m)) for k in keys}
+    out["rti_rejected_fraction"] = (out["rti_rejected"] / out["rti_steps"] if out["rti_steps"]
+                                    else math.nan)
+    return out
+
+
+def _rti_paths_table(rows: list[dict[str, Any]]) -> list[str]:
+    """The real-time iterations' paths per cell (rows with RTI steps only; none: no lines)."""
+    rti = [r for r in rows if _finite_number(r.get("rti_steps")) and r["rti_steps"] > 0]
+    if not rti:
+        return []
+    body = [[f"{r['env']} `{r['scenario']}`, {r['cell']}", r["label"], r["episodes"],
+             r["rti_steps"], r["rti_recovered"], r["rti_rejected"],
+             f"{100 * r['rti_rejected_fraction']:.1f}%"] for r in rti]
+    return ["", "Real-time iteration paths per cell (summed over the episodes): RTI steps taken, "
+            "steps *recovered* by further SQP iterations within the iteration budget "
+            "(`RTI.recovery_iterations`), steps *rejected* (replaced by a converged solve):",
+            "", *markdown_table(["cell", "controller", "episodes", "RTI steps", "recovered",
+                                 "rejected", "rejected %"], body,
+                                ["---", "---"] + ["---:"] * 5)]
+
+
+def _finite_number(value: Any) -> bool:
+    return isinstance(value, int | float | np.integer | np.floating) and math.isfinite(value)
 
 
 # ----------------------------------------------------------------------------- sections
@@ -439,6 +475,7 @@ def section_summary(ctx: Context, exp: Experiment) -> list[str]:
              "final time); *final dist.*: `info['distance_to_goal']`; *violations*: steps with "
              "`info['constraint_violation']`; *data steps*: env steps of data used):", ""]
     lines += markdown_table(header, body, ["---", "---"] + ["---:"] * 10 + ["---"])
+    lines += _rti_paths_table(rows)
     unavailable = [t for t in ctx.of(exp) if t.status == STATUS_UNAVAILABLE]
     reasons = sorted({f"{t.spec.controller} on {t.spec.env} `{t.spec.scenario}`: "
                       f"{t.record['message']}" for t in unavailable if t.record})

@@ -282,6 +282,10 @@ def run_episode(spec: TrialSpec) -> dict[str, Any]:
         "learner_changes": (int(agent.learner.n_changes_) if is_mpc and getattr(
             getattr(agent, "learner", None), "detector_", None) is not None else float("nan")),
         # the episode's fallback paths (PseudospectralMPC.health; degraded: > 10% of replans)
+        "rti_steps": int(agent.health()["rti_steps"]) if is_mpc else float("nan"),
+        "rti_recovered": int(agent.health()["rti_recovered"]) if is_mpc else float("nan"),
+        "rti_recovery_iterations": (int(agent.health()["rti_recovery_iterations"]) if is_mpc
+                                    else float("nan")),
         "rti_rejected": int(agent.health()["rti_rejected"]) if is_mpc else float("nan"),
         "degraded": bool(agent.health()["degraded"]) if is_mpc else False,
         "build_s": build_s,

@@ -116,6 +116,7 @@ def _probe(agent: PseudospectralMPC) -> dict:
         "mesh": agent.mesh.describe(), "planner": type(planner).__name__,
         "qp": repr(getattr(planner, "qp_solver", None)),
         "mu": getattr(planner, "levenberg_marquardt", None),
+        "recovery": getattr(planner, "recovery_iterations", None),
         "warm_duals": planner.warm_start_duals, "solver": planner.ocp.solver_name,
         "jit": planner.ocp.jit, "inputs": agent.residual.input_names,
         "outputs": agent.residual.uncertain_indices, "term": type(agent.term).__name__,
@@ -164,6 +165,8 @@ _SETTINGS = {
     "RTI.qp_solver": ("pendulum", False, {"scheme": RTI()}, {"scheme": RTI(qp_solver="osqp")}),
     "RTI.levenberg_marquardt": ("pendulum", False, {"scheme": RTI()},
                                 {"scheme": RTI(levenberg_marquardt=0.5)}),
+    "RTI.recovery_iterations": ("pendulum", False, {"scheme": RTI()},
+                                {"scheme": RTI(recovery_iterations=0)}),
     "RTI.fallback": ("pendulum", False, {"scheme": RTI()},
                      {"scheme": RTI(fallback=Converged(max_iterations=2))}),
     "term": ("pendulum", True, {}, {"term": "linearized"}),
@@ -258,6 +261,9 @@ def test_settings_objects_check_their_values():
         RTI(levenberg_marquardt=-1.0)
     with pytest.raises(TypeError, match="fallback"):
         RTI(fallback="ipopt")
+    for bad in (-1, 1.5, True):
+        with pytest.raises(ValueError, match="recovery_iterations"):
+            RTI(recovery_iterations=bad)
 
 
 def test_an_ssgp_learning_online_needs_an_update():

@@ -30,6 +30,7 @@ study writes a report saying so, with the reason on one line, and exits 0.
 from __future__ import annotations
 
 import argparse
+import copy
 import csv
 import json
 import os
@@ -57,6 +58,11 @@ PACKAGE = "comma-deps-acados"
 PYTHON_VERSION = (3, 12)
 """The wheel's vendored CasADi is built for CPython 3.12."""
 ENV_IDS = {"quadrotor": "gp_envs/Quadrotor-v0"}
+LEARNING = "ours robust"
+"""The learning RTI's label: ``make_mpc(env, "robust", scheme=...)`` pretrained on
+:data:`LEARNING_SAMPLES` transitions of ``collect_initial_data(env, n, seed=BASE_SEED)``; each
+episode starts from that pretrained learner and learns online within the episode."""
+LEARNING_SAMPLES = 200
 BASE_SEED = 100
 """Block ``k`` starts from ``env.reset(seed=BASE_SEED + k)`` on both sides (tuning seeds)."""
 LONG_N = 30
@@ -477,7 +483,11 @@ def write_report(out: Path, command: str, spec: dict[str, Any], worker: AcadosWo
         ("ours rti", f"acados N={LONG_N}", "act_ms"),
         ("ours rti", f"acados N={spec['our_nodes']}", "act_ms"),
         ("ours rti-split", f"acados N={LONG_N} split", "latency_ms"),
-        ("ours rti-split", f"acados N={spec['our_nodes']} split", "latency_ms"))
+        ("ours rti-split", f"acados N={spec['our_nodes']} split", "latency_ms"),
+        (f"{LEARNING} rti", f"acados N={LONG_N}", "act_ms"),
+        (f"{LEARNING} rti-split", f"acados N={LONG_N} split", "latency_ms"),
+        (f"{LEARNING} rti", "ours rti", "act_ms"),
+        (f"{LEARNING} rti-split", "ours rti-split", "latency_ms"))
         if a in labels and b in labels]
     ratio_rows = []
     for b in blocks:
@@ -487,7 +497,13 @@ def write_report(out: Path, command: str, spec: dict[str, Any], worker: AcadosWo
               for x, y, key in pairs}
     m = machine()
     lines = [
-        "# acados as a measured peer of the pseudospectral RTI (quadrotor, nominal model)", "",
+        "# acados as a measured peer of the pseudospectral RTI (quadrotor)", "",
+        f"acados and `ours rti*` plan with the nominal model; `{LEARNING} rti*` is the learning "
+        f"RTI, `make_mpc(env, \"robust\", scheme=...)` pretrained on "
+        f"`collect_initial_data(env, {LEARNING_SAMPLES}, seed={BASE_SEED})` (each episode from "
+        f"that pretrained learner, learning online within the episode: its step includes the "
+        f"learner update, with the split scheme in the preparation), measured in the same run "
+        f"and blocks.", "",
         f"Command: `{command}` ({seconds / 60:.1f} min, solver builds included)", "",
         f"Machine: {m['nproc']} CPU(s) visible, {m['cpu']}; {m['os']}; "
         f"OMP_NUM_THREADS={m['OMP_NUM_THREADS']} on both sides. Load average (1, 5, 15 min) "
@@ -547,6 +563,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT)
     parser.add_argument("--venv", type=Path, default=DEFAULT_VENV,
                         help="the acados virtual environment (created if missing)")
+    parser.add_argument("--no-learning", action="store_true",
+                        help="leave out the learning RTI (the robust recipe, pretrained)")
     parser.add_argument("--acados-python", default=None,
                         help=f"a CPython {'.'.join(map(str, PYTHON_VERSION))} for the venv")
     args = parser.parse_args(argv)
@@ -566,6 +584,15 @@ def main(argv: list[str] | None = None) -> int:
     agents = {f"ours {s}": PseudospectralMPC.from_env(env, scheme=s)
               for s in ("rti", "rti-split")}
     first = next(iter(agents.values()))
+    learned: dict[str, Any] = {}
+    if not args.no_learning:  # the learning RTI: the robust recipe, pretrained once
+        from gp_agents import collect_initial_data, make_mpc
+
+        data = collect_initial_data(env, LEARNING_SAMPLES, seed=BASE_SEED)
+        for s in ("rti", "rti-split"):
+            agent = make_mpc(env, "robust", scheme=s).pretrain(data)
+            agents[f"{LEARNING} {s}"] = agent
+            learned[f"{LEARNING} {s}"] = copy.deepcopy(agent.learner)
     env.reset(seed=BASE_SEED)
     spec = export_ocp(env, first)
     try:
@@ -589,6 +616,8 @@ def main(argv: list[str] | None = None) -> int:
             def ours(seed: int = seed, measured: dict[str, Episode] = measured) -> np.ndarray:
                 x0 = None
                 for label, agent in agents.items():
+                    if label in learned:  # every episode from the same pretrained learner
+                        agent.learner = agent.term.learner = copy.deepcopy(learned[label])
                     measured[label], x0 = run_ours(env, agent, seed, args.steps)
                 assert x0 is not None
                 return x0
@@ -621,7 +650,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"acados peer skipped: {err}")
         return 0
     worker.close()
-    order = ["ours rti", "ours rti-split"] + [r[0] for r in acados_runs]
+    order = list(agents) + [r[0] for r in acados_runs]
     rows.sort(key=lambda r: (r["block"], order.index(r["controller"])))
     write_report(args.out, command, spec, worker, rows, our_versions(), first.qp_solver
                  if isinstance(first.qp_solver, str) else type(first.qp_solver).__name__,

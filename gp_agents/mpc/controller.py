@@ -190,7 +190,10 @@ class PseudospectralMPC:
             scheme = dataclasses.replace(
                 scheme, qp_solver=scheme.qp_solver or tuning.qp_solver,
                 levenberg_marquardt=(tuning.levenberg_marquardt if scheme.levenberg_marquardt
-                                     is None else scheme.levenberg_marquardt))
+                                     is None else scheme.levenberg_marquardt),
+                recovery_iterations=(tuning.recovery_iterations
+                                     if scheme.recovery_iterations is None
+                                     else scheme.recovery_iterations))
         self.schedule: RecedingHorizon | Episodic = schedule
         self.scheme_settings: Converged | RTI = scheme
         self.residual_settings = residual
@@ -322,7 +325,8 @@ class PseudospectralMPC:
         self._step = 0
         self._buffer.clear()
         self.diagnostics: list[StepRecord] = []
-        self._health = dict.fromkeys(("replans", "rti_steps", "rti_rejected", "failed",
+        self._health = dict.fromkeys(("replans", "rti_steps", "rti_recovered",
+                                      "rti_recovery_iterations", "rti_rejected", "failed",
                                       "capped", "fallbacks", "degraded_replans"), 0)
         self._warned = False
 
@@ -366,6 +370,7 @@ class PseudospectralMPC:
                 planner: type[Planner] = SplitRTIPlanner if settings.split else RTIPlanner
                 extra: dict[str, Any] = {"qp_solver": settings.qp_solver,
                                          "levenberg_marquardt": settings.levenberg_marquardt,
+                                         "recovery_iterations": settings.recovery_iterations,
                                          **settings.fallback.planner_settings()}
             else:
                 planner, extra = Planner, settings.planner_settings()
@@ -420,8 +425,11 @@ class PseudospectralMPC:
 
     def health(self) -> dict[str, int | bool]:
         """How this episode's replans went (since the last :meth:`reset`): ``replans``,
-        ``rti_steps`` (RTI steps taken), ``rti_rejected`` (RTI steps replaced by a converged
-        solve), ``failed`` (replans whose solve failed), ``capped`` (ending at the iteration
+        ``rti_steps`` (RTI steps taken), ``rti_recovered`` (RTI steps whose constraint
+        violation was too large and that further SQP iterations within the
+        ``recovery_iterations`` budget made acceptable; ``rti_recovery_iterations``: those
+        iterations), ``rti_rejected`` (RTI steps replaced by a converged solve, the last
+        resort), ``failed`` (replans whose solve failed), ``capped`` (ending at the iteration
         cap), ``fallbacks`` (an older or constant plan kept), ``degraded_replans`` (replans with
         any of the last four) and ``degraded`` (more than :data:`~gp_agents.mpc.diagnostics.
         DEGRADED_FRACTION` of the replans, and at least :data:`~gp_agents.mpc.diagnostics.
@@ -439,6 +447,9 @@ class PseudospectralMPC:
         h = self._health
         h["replans"] += 1
         h["rti_steps"] += int(status.startswith("RTI"))
+        recovered = status.startswith("RTI recovered")
+        h["rti_recovered"] += int(recovered)
+        h["rti_recovery_iterations"] += int(record["iterations"]) - 1 if recovered else 0
         h["rti_rejected"] += int(rejected)
         h["failed"] += int(failed)
         h["capped"] += int(capped)

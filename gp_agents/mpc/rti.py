@@ -73,6 +73,9 @@ QP_SOLVER_OPTIONS: dict[str, dict[str, Any]] = {
 iteration caps are counts, so the step is deterministic)."""
 
 STEP_OUTPUTS = ("w", "u", "violation", "lam_g", "lam_x", "qp_iterations")
+RECOVERY_CONTRACTION = 0.5
+"""A recovery projection must at least halve the constraint violation, else the recovery
+stops (the linearized constraints cannot be met near the step: the converged fallback)."""
 """The outputs of a compiled RTI step, in order: the new NLP point, the action, the NLP's
 constraint violation there, the QP's multipliers and the active-set iterations."""
 
@@ -138,7 +141,7 @@ class RTIPlanner(Planner):
                  qp_solver: str | ActiveSetQP = "proxqp",
                  qp_options: Mapping[str, Any] | None = None,
                  max_violation: float = 1e-2, levenberg_marquardt: float = 0.0,
-                 **settings: Any) -> None:
+                 recovery_iterations: int = 0, **settings: Any) -> None:
         settings.setdefault("warm_start_duals", True)
         super().__init__(planning, mesh, constraints, **settings)
         solver = resolve_qp_solver(qp_solver, qp_options)
@@ -151,11 +154,18 @@ class RTIPlanner(Planner):
             options = dict(QP_SOLVER_OPTIONS.get(solver, {}) if qp_options is None
                            else qp_options)
             options.setdefault("error_on_fail", False)
+        self._qp_options = options
         self._shift, self._qp_step, step = self._build(options)
         self._step = BufferedFunction(step)
         self._learned_steps: dict[tuple[int, bool], BufferedFunction] = {}
         self._iterate: BufferedFunction | None = None
+        self._projections: dict[int, BufferedFunction] = {}
+        if isinstance(recovery_iterations, bool) or int(recovery_iterations) < 0:
+            raise ValueError(f"recovery_iterations must be an int >= 0, got "
+                             f"{recovery_iterations!r}")
+        self.recovery_iterations = int(recovery_iterations)
         self.n_rti_steps = self.n_rti_rejected = 0
+        self.n_rti_recovered = self.n_recovery_iterations = 0
         self.n_qp_fallbacks = 0  # active-set QPs that did not settle (ActiveSetQP only)
 
     def _build(self, qp_options: dict[str, Any]) -> tuple[ca.Function, ca.Function, ca.Function]:
@@ -233,7 +243,8 @@ class RTIPlanner(Planner):
                 (data["uba"] - r <= tol) - (data["lba"] - r >= -tol))
 
     def _qp_outputs(self, w_s: ca.MX, x0: ca.MX, H: ca.MX, grad: ca.MX, J: ca.MX, g0: ca.MX,
-                    P: ca.MX, guess: tuple[ca.MX, ca.MX] | None = None) -> list[ca.MX]:
+                    P: ca.MX, guess: tuple[ca.MX, ca.MX] | None = None,
+                    qp: ca.Function | None = None) -> list[ca.MX]:
         """The QP of :meth:`_qp_data` solved symbolically, and what it gives:
         :data:`STEP_OUTPUTS` (the active-set iterations are 0 when it fell back, -1 for a
         plain plugin). ``guess``: the active-set solver's initial ``(guess_x, guess_a)``
@@ -241,12 +252,13 @@ class RTIPlanner(Planner):
         ocp = self.ocp
         lbg, ubg = (ca.DM(b) for b in ocp.bounds()[2:])
         data = self._qp_data(w_s, x0, H, grad, J, g0)
+        qp = self._qp if qp is None else qp
         if isinstance(self.qp_solver, ActiveSetQP):
             guess_x, guess_a = guess if guess is not None else self._active_at(data)
-            res = self._qp(**data, guess_x=guess_x, guess_a=guess_a)
+            res = qp(**data, guess_x=guess_x, guess_a=guess_a)
             iterations = res["iterations"]
         else:
-            res = self._qp(**data, x0=ca.DM.zeros(ocp.n_variables))
+            res = qp(**data, x0=ca.DM.zeros(ocp.n_variables))
             iterations = ca.MX(-1)
         w_new = w_s + res["x"]
         g_new = self._constraints(w_new, P)
@@ -322,6 +334,81 @@ class RTIPlanner(Planner):
         self._learned_steps[n_theta, shift] = BufferedFunction(step)
         return self._learned_steps[n_theta, shift]
 
+    def _projection_step(self, n_theta: int) -> BufferedFunction:
+        """The feasibility projection from an NLP point (built once per learner size):
+        ``(w, x0, p[, theta]) -> STEP_OUTPUTS``: X(t0) set to ``x0``, the rest clipped into the
+        bounds, the learned term expanded there (with ``n_theta`` > 0), and the QP of the
+        real-time iteration's constraints with the objective replaced by the step's length,
+        ``min 1/2 |dw|^2`` over the linearized constraints and bounds (the minimum-norm
+        Gauss-Newton step on the constraints: convex whatever the objective's Hessian, and
+        quadratically convergent to a feasible point near ``w``; the objective is left to the
+        next period's step)."""
+        fn = self._projections.get(n_theta)
+        if fn is not None:
+            return fn
+        ocp, term = self.ocp, self.planning.term
+        n = self.planning.model.n_states
+        w, x0 = ca.MX.sym("w", ocp.n_variables), ca.MX.sym("x0", n)
+        ws = self._fix_x0(w, x0)
+        if n_theta:
+            M = ocp.node_indices()[0].shape[0]
+            p = ca.MX.sym("p", ocp.nlp["p"].numel() - M * term.n_node_params())
+            theta = ca.MX.sym("theta", n_theta)
+            Q = term.node_param_expr(*self._nodes(ws), theta)
+            P_full = ca.vertcat(p, ca.vec(Q))
+            inputs, names = [w, x0, p, theta], ["w_in", "x0", "p", "theta"]
+        else:
+            p = P_full = ca.MX.sym("p", ocp.nlp["p"].numel())
+            inputs, names = [w, x0, p], ["w_in", "x0", "p"]
+        g0, J0 = self._derivatives(ws, P_full)[:2]
+        n_w = ocp.n_variables
+        eye = ca.DM.eye(n_w)
+        if isinstance(self.qp_solver, ActiveSetQP):
+            qp = self.qp_solver.function(eye.sparsity(), J0.sparsity())
+        else:
+            qp = ca.conic("rti_projection_qp", self.qp_solver,
+                          {"h": eye.sparsity(), "a": J0.sparsity()}, self._qp_options)
+        out = self._qp_outputs(ws, x0, ca.MX(eye), ca.MX.zeros(n_w), J0, g0, P_full, qp=qp)
+        outputs = list(STEP_OUTPUTS)
+        if n_theta:  # the expansion's error at the projected plan
+            out.append(term.plan_error_expr(*self._nodes(out[0]), Q, theta))
+            outputs.append("linearization_error")
+        fn = BufferedFunction(ca.Function("rti_projection", inputs, out, names, outputs))
+        self._projections[n_theta] = fn
+        return fn
+
+    def _project_outputs(self, x: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, ...]:
+        """One feasibility projection (:meth:`_projection_step`) from ``w`` with X(t0) at
+        ``x``."""
+        term: LearnedTerm = self.planning.term
+        p = self.planning.param_values()
+        if term.n_node_params():
+            theta = term.expansion_param_values()
+            return tuple(self._projection_step(theta.size)(w, x, p, theta))
+        return tuple(self._projection_step(0)(w, x, p))
+
+    def _iterate_outputs(self, x: np.ndarray, w: np.ndarray, lam_g: np.ndarray | None
+                         ) -> tuple[np.ndarray, ...]:
+        """The compiled SQP iteration of :meth:`iterate`: :data:`STEP_OUTPUTS` and, with a
+        node-parameter term, the expansion error at the new point."""
+        term: LearnedTerm = self.planning.term
+        p = self.planning.param_values()
+        n_g = self.ocp.nlp["g"].numel()
+        lam = np.zeros(n_g) if lam_g is None else np.asarray(lam_g, float)
+        if term.n_node_params():
+            theta = term.expansion_param_values()
+            step = self._learned_step(theta.size, shift=False)
+            args = [w, x, p, theta] + ([lam] if step.fn.n_in() == 5 else [])
+            return tuple(step(*args))
+        if self._iterate is None:
+            w_in, x_in = ca.MX.sym("w", self.ocp.n_variables), ca.MX.sym("x0", x.size)
+            p_in = ca.MX.sym("p", self.ocp.nlp["p"].numel())
+            self._iterate = BufferedFunction(ca.Function(
+                "rti_iterate", [w_in, x_in, p_in],
+                self._qp_step(self._fix_x0(w_in, x_in), p_in,
+                              ca.DM.zeros(self.ocp.n_variables))))
+        return tuple(self._iterate(w, x, p))
+
     def iterate(self, x: np.ndarray, w: np.ndarray, lam_g: np.ndarray | None = None
                 ) -> tuple[np.ndarray, np.ndarray, float]:
         """One Gauss-Newton SQP step of this period's OCP from the NLP point ``w`` (n_w,),
@@ -340,24 +427,7 @@ class RTIPlanner(Planner):
             The new point (n_w,), its QP's constraint multipliers (n_g,) and the NLP's
             constraint violation there.
         """
-        term: LearnedTerm = self.planning.term
-        p = self.planning.param_values()
-        n_g = self.ocp.nlp["g"].numel()
-        lam = np.zeros(n_g) if lam_g is None else np.asarray(lam_g, float)
-        if term.n_node_params():
-            theta = term.expansion_param_values()
-            step = self._learned_step(theta.size, shift=False)
-            args = [w, x, p, theta] + ([lam] if step.fn.n_in() == 5 else [])
-            out = step(*args)
-        else:
-            if self._iterate is None:
-                w_in, x_in = ca.MX.sym("w", self.ocp.n_variables), ca.MX.sym("x0", x.size)
-                p_in = ca.MX.sym("p", self.ocp.nlp["p"].numel())
-                self._iterate = BufferedFunction(ca.Function(
-                    "rti_iterate", [w_in, x_in, p_in],
-                    self._qp_step(self._fix_x0(w_in, x_in), p_in,
-                                  ca.DM.zeros(self.ocp.n_variables))))
-            out = self._iterate(w, x, p)
+        out = self._iterate_outputs(x, w, lam_g)
         return out[0], out[3], float(out[2][0])
 
     def plan(self, x: np.ndarray, previous: Plan | None, step: int) -> tuple[Plan, dict[str, Any]]:
@@ -411,14 +481,71 @@ class RTIPlanner(Planner):
             violation = float(violation[0])
             self.n_qp_fallbacks += int(qp_iterations[0] == 0)
         self.n_rti_steps += 1
+        recovered = 0
+        if (np.isfinite(violation) and violation > self.max_violation
+                and self.recovery_iterations and np.all(np.isfinite(w_new))):
+            assert out is not None
+            began = time.perf_counter()
+            out, recovered, error = self._recover(x, out, error)
+            w_new, _, violation = out[:3]  # the step's multipliers stay the estimate
+            violation = float(violation[0])
+            elapsed += time.perf_counter() - began
         if not (np.all(np.isfinite(w_new)) and violation <= self.max_violation):
             self.n_rti_rejected += 1
             plan, record = super().plan(x, previous, step)
             record["solve_time"] += elapsed
             record["status"] = f"RTI rejected ({violation:.2g}), {record['status']}"
             return plan, record
-        sol = self.ocp.solution_from_primal(w_new, p, status="RTI", success=True, iterations=1,
-                                            solve_time=elapsed, lam_x=lam_x, lam_g=lam_g)
+        status = "RTI" if not recovered else f"RTI recovered ({recovered})"
+        self.n_rti_recovered += int(recovered > 0)
+        self.n_recovery_iterations += recovered
+        sol = self.ocp.solution_from_primal(w_new, p, status=status, success=True,
+                                            iterations=1 + recovered, solve_time=elapsed,
+                                            lam_x=lam_x, lam_g=lam_g)
         return Plan(sol, step, self.planning.model.dt, self.ocp.hold), dict(
-            success=True, status="RTI", iterations=1, solve_time=elapsed, solves=1,
-            fallback=False, linearization_error=float(error))
+            success=True, status=status, iterations=1 + recovered, solve_time=elapsed,
+            solves=1, fallback=False, linearization_error=float(error))
+
+    def _recover(self, x: np.ndarray, out: tuple[np.ndarray, ...], error: float
+                 ) -> tuple[tuple[np.ndarray, ...], int, float]:
+        """Recover a step ``out`` whose constraint violation is too large inside the real-time
+        scheme: feasibility projections from its point (:meth:`_projection_step`: X(t0) the
+        measured state ``x``, the learned term re-expanded at each point, the QP without the
+        objective, i.e. minimum-norm Newton steps on the linearized constraints), until the
+        violation is within ``max_violation``, or a projection fails to contract it by
+        :data:`RECOVERY_CONTRACTION`, or :attr:`recovery_iterations` are spent
+        (an iteration count, never a time). From the feasible point it reaches, one SQP
+        iteration (the objective's share, the learned term re-expanded there) replaces it when
+        that stays within tolerance (the projection alone lost a Dubins tuning episode that
+        the projection and this step reach, study ``rti_recovery``).
+
+        Returns:
+            The recovered point's outputs (:data:`STEP_OUTPUTS`; the last contracting
+            projection's, ``out`` if none contracted), the iterations taken (projections and
+            the SQP step) when the violation ends within tolerance (0 otherwise: the caller
+            rejects the step on the violation) and the expansion error at that point
+            (``error`` unchanged without a learned term).
+        """
+        lam_g = np.asarray(out[3]).ravel()
+        violation, k = float(out[2][0]), 0
+        while k < self.recovery_iterations and violation > self.max_violation:
+            try:
+                nxt = self._project_outputs(x, np.asarray(out[0]).ravel())
+            except RuntimeError:  # the QP plugin raised
+                break
+            now = float(nxt[2][0])
+            if not (np.all(np.isfinite(nxt[0])) and now < RECOVERY_CONTRACTION * violation):
+                break  # no Newton-like contraction: the linearized constraints cannot be met
+            out, violation, k = nxt, now, k + 1
+        if violation > self.max_violation:
+            return out, 0, error
+        error = float(out[6][0]) if len(out) > 6 else error
+        # the SQP step from the feasible point (the objective's share), kept when it stays
+        # within tolerance
+        try:
+            step = self._iterate_outputs(x, np.asarray(out[0]).ravel(), lam_g)
+        except RuntimeError:
+            return out, k, error
+        if np.all(np.isfinite(step[0])) and float(step[2][0]) <= self.max_violation:
+            return step, k + 1, (float(step[6][0]) if len(step) > 6 else error)
+        return out, k, error

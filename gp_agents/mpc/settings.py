@@ -26,6 +26,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
+import numpy as np
+
 from gp_agents.mpc.active_set import ActiveSetQP
 from gp_agents.mpc.rti import check_levenberg_marquardt
 
@@ -92,6 +94,12 @@ class RTI:
             (:func:`gp_agents.mpc.tuning.rti_tuning`).
         levenberg_marquardt: ``mu`` >= 0 on the QP Hessian's diagonal; None: the system's
             tuning.
+        recovery_iterations: further SQP iterations (an iteration budget, >= 0) a step whose
+            constraint violation is too large may take inside the real-time scheme, from the
+            step's own point with the measured X(t0) and the learned term re-expanded at each
+            iterate, before it is rejected and replaced by the converged fallback
+            (:meth:`~gp_agents.mpc.rti.RTIPlanner._recover`); 0: reject at once. None: the
+            system's tuning.
         fallback: the converged solves (cold start, rejected steps); by default warm-started
             with the previous multipliers.
     """
@@ -99,6 +107,7 @@ class RTI:
     split: bool = False
     qp_solver: str | ActiveSetQP | None = None
     levenberg_marquardt: float | None = None
+    recovery_iterations: int | None = None
     fallback: Converged = field(default_factory=lambda: Converged(warm_start_duals=True))
 
     def __post_init__(self) -> None:
@@ -106,6 +115,12 @@ class RTI:
             raise TypeError(f"RTI: split must be a bool, got {self.split!r}")
         if self.levenberg_marquardt is not None:
             check_levenberg_marquardt(self.levenberg_marquardt)
+        if self.recovery_iterations is not None and (
+                isinstance(self.recovery_iterations, bool)
+                or not isinstance(self.recovery_iterations, int | np.integer)
+                or self.recovery_iterations < 0):
+            raise ValueError(f"RTI: recovery_iterations must be an int >= 0 or None, got "
+                             f"{self.recovery_iterations!r}")
         if not isinstance(self.fallback, Converged):
             raise TypeError(f"RTI: fallback must be a Converged, got "
                             f"{type(self.fallback).__name__}")
