@@ -427,6 +427,22 @@ def test_batch_export_matches_predict_at_every_column(kind, data, exact_gp):
     np.testing.assert_array_equal(lean[lean != 0], full[lean != 0])
     with pytest.raises(ValueError, match="rows"):
         model.casadi_mean_batch(ca.MX.sym("Z", 2, 4), theta)
+    # the mean-only vector (the variance's blocks left out): the same mean, fewer numbers
+    compact = model.casadi_mean_param_values()
+    assert compact.shape == (model.casadi_mean_param_size(),)
+    assert compact.size < P and np.count_nonzero(compact) == np.count_nonzero(lean)
+    tc = ca.MX.sym("theta", compact.size)
+    mean_fn = ca.Function("mean", [Zs, tc], [model.casadi_mean_batch(Zs, tc)])
+    np.testing.assert_allclose(np.asarray(mean_fn(Zq.T, compact)).T, mean, rtol=1e-10,
+                               atol=1e-10)
+    z1 = ca.MX.sym("z", 3)
+    one = ca.Function("one", [z1, tc], [model.casadi_mean(z1, tc)])
+    np.testing.assert_allclose(np.asarray(one(Zq[0], compact)).ravel(), mean[0], rtol=1e-10,
+                               atol=1e-10)
+    with pytest.raises(KeyError):  # the variance needs the full vector
+        model.casadi_variance_batch(Zs, tc)
+    with pytest.raises(ValueError, match="theta must have shape"):
+        model.casadi_mean_batch(Zs, ca.MX.sym("theta", compact.size + 1))
 
 
 # ---------------------------------------------------------------------------- bad inputs

@@ -31,6 +31,9 @@ class BaseGPLearner(ABC):
 
     standardizer_: Standardizer | None = None
     hyperparameters_: GPHyperparameters | None = None
+    _variance_blocks: tuple[str, ...] = ()
+    """Name prefixes of the blocks of :meth:`_casadi_blocks` that only the variance reads (left
+    out of the mean-only parameter vector, :meth:`casadi_mean_param_values`)."""
     n_features_in_: int
     n_outputs_: int
     n_samples_seen_: int
@@ -83,6 +86,30 @@ class BaseGPLearner(ABC):
             self._layout_cache = layout
         return layout
 
+    def _mean_layout(self) -> ParamLayout:
+        """The layout of the mean-only parameter vector: :meth:`_layout` without the blocks
+        only the variance reads (:attr:`_variance_blocks`)."""
+        layout = getattr(self, "_mean_layout_cache", None)
+        if layout is None:
+            shapes = [(name, np.shape(v)) for name, v in self._standardizer_blocks()]
+            layout = ParamLayout(shapes + [
+                (name, shape) for name, shape in self._casadi_block_shapes()
+                if not name.startswith(self._variance_blocks)])
+            self._mean_layout_cache = layout
+        return layout
+
+    def _layout_for(self, theta: ca.SX | ca.MX) -> ParamLayout:
+        """The layout ``theta`` is packed with, told by its size: :meth:`_layout` (the full
+        vector) or :meth:`_mean_layout` (the mean-only one)."""
+        full = self._layout()
+        if theta.shape[0] == full.size:
+            return full
+        mean = self._mean_layout()
+        if theta.shape == (mean.size, 1):
+            return mean
+        raise ValueError(f"theta must have shape ({full.size}, 1) (casadi_param_values) or "
+                         f"({mean.size}, 1) (casadi_mean_param_values), got {theta.shape}")
+
     def _standardizer_blocks(self) -> list[tuple[str, np.ndarray]]:
         s = self.standardizer_
         assert s is not None
@@ -90,6 +117,7 @@ class BaseGPLearner(ABC):
 
     def _reset_layout(self) -> None:
         self._layout_cache = None
+        self._mean_layout_cache = None
 
     # ------------------------------------------------------------------ public API
     def predict(
@@ -151,9 +179,23 @@ class BaseGPLearner(ABC):
             dict(self._standardizer_blocks() + self._casadi_blocks(variance)),
             fill_missing=not variance)
 
+    def casadi_mean_param_size(self) -> int:
+        """Length of the mean-only parameter vector (:meth:`casadi_mean_param_values`)."""
+        self._check_fitted()
+        return self._mean_layout().size
+
+    def casadi_mean_param_values(self) -> np.ndarray:
+        """The mean-only parameter vector: :meth:`casadi_param_values` without the blocks only
+        the variance reads (the inverse Cholesky factors: on the quadrotor's learner 109,350
+        of 120,760 numbers), for :meth:`casadi_mean` and :meth:`casadi_mean_batch`, which take
+        either vector (told apart by size)."""
+        self._check_fitted()
+        return self._mean_layout().pack(dict(self._standardizer_blocks()
+                                             + self._casadi_blocks(variance=False)))
+
     def _sym_outputs(self, z: ca.SX | ca.MX, theta: ca.SX | ca.MX, variance: bool) -> ca.SX | ca.MX:
         self._check_fitted()
-        layout = self._layout()
+        layout = self._layout_for(theta)
         zs = sym_standardize(z, layout.unpack(theta, "z_mean"), layout.unpack(theta, "z_std"),
                              self.standardizer_.input_saturation)
         return self._sym_rows(theta, variance,
@@ -163,7 +205,7 @@ class BaseGPLearner(ABC):
                   output: Callable[[int], tuple[Any, Any]]) -> ca.SX | ca.MX:
         """Every output's mean (or variance) in the data's units, stacked: ``output(j)`` gives
         output ``j``'s standardized mean and variance."""
-        layout = self._layout()
+        layout = self._layout_for(theta)
         y_mean = layout.unpack(theta, "y_mean")
         y_std = layout.unpack(theta, "y_std")
         rows = []
@@ -185,10 +227,10 @@ class BaseGPLearner(ABC):
 
     def _sym_outputs_batch(self, Z: ca.MX, theta: ca.MX, variance: bool) -> ca.MX:
         self._check_fitted()
-        layout = self._layout()
         d, M = self.n_features_in_, Z.shape[1]
         if Z.shape[0] != d:
             raise ValueError(f"Z must have {d} rows (one column per point), got {Z.shape}")
+        layout = self._layout_for(theta)
         Zs = sym_saturate((Z - ca.repmat(layout.unpack(theta, "z_mean"), 1, M)) / ca.repmat(
             layout.unpack(theta, "z_std"), 1, M), self.standardizer_.input_saturation)
         return self._sym_rows(theta, variance,

@@ -102,6 +102,8 @@ class ExactGP(BaseGPLearner):
         ``n_samples_seen_``.
     """
 
+    _variance_blocks = ("Linv_",)
+
     def __init__(
         self,
         *,
@@ -263,7 +265,7 @@ class ExactGP(BaseGPLearner):
     def _sym_mean_var(
         self, zs: ca.SX | ca.MX, theta: ca.SX | ca.MX, j: int, variance: bool
     ) -> tuple[ca.SX | ca.MX, ca.SX | ca.MX | None]:
-        lay = self._layout()
+        lay = self._layout_for(theta)
         return sym_se_ard_mean_var(
             zs,
             lay.unpack(theta, "Z_train"),

@@ -203,6 +203,8 @@ class SSGP(BaseGPLearner):
         the columns with a linear feature or None.
     """
 
+    _variance_blocks = ("Rinv_",)
+
     def __init__(
         self,
         n_frequencies: int = 100,
@@ -469,7 +471,7 @@ class SSGP(BaseGPLearner):
     def _sym_mean_var_batch(
         self, Zs: ca.MX, theta: ca.MX, j: int, variance: bool
     ) -> tuple[ca.MX, ca.MX | None]:
-        lay = self._layout()
+        lay = self._layout_for(theta)
         omega = lay.unpack(theta, f"omega_{j}")
         arg = ca.mtimes(omega.T, Zs)  # (r, M)
         phi = (lay.unpack(theta, f"sf_{j}") / np.sqrt(omega.shape[1])) * ca.vertcat(
@@ -485,7 +487,7 @@ class SSGP(BaseGPLearner):
     def _sym_mean_var(
         self, zs: ca.SX | ca.MX, theta: ca.SX | ca.MX, j: int, variance: bool
     ) -> tuple[ca.SX | ca.MX, ca.SX | ca.MX | None]:
-        lay = self._layout()
+        lay = self._layout_for(theta)
         phi = sym_fourier_features(
             zs, lay.unpack(theta, f"omega_{j}"), lay.unpack(theta, f"sf_{j}")
         )

@@ -116,12 +116,17 @@ class LinearizedGP(LearnedTerm):
     # ------------------------------------------------------------------ compiled expansion
     def expansion_param_values(self) -> np.ndarray:
         """The learner's parameters ``theta`` (P,) that :meth:`node_param_expr` and
-        :meth:`plan_error_expr` read (its CasADi export, :meth:`casadi_param_values`).
+        :meth:`plan_error_expr` read (its CasADi export): without the variance, the mean-only
+        vector (``casadi_mean_param_values``, for a learner that has one), else
+        ``casadi_param_values``.
 
         Raises:
             RuntimeError: the learner is not fitted.
         """
         try:
+            mean_only = getattr(self.learner, "casadi_mean_param_values", None)
+            if not self.variance and mean_only is not None:
+                return np.asarray(mean_only(), float).ravel()
             values = self.learner.casadi_param_values(variance=self.variance)
             return np.asarray(values, float).ravel()
         except (ValueError, RuntimeError) as err:
