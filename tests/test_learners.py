@@ -445,6 +445,41 @@ def test_batch_export_matches_predict_at_every_column(kind, data, exact_gp):
         model.casadi_mean_batch(Zs, ca.MX.sym("theta", compact.size + 1))
 
 
+@pytest.mark.parametrize("kind", ["exact", "ssgp", "incremental", "linear", "masked",
+                                  "saturated"])
+def test_batch_mean_gradient_matches_predict_gradient(kind, data, exact_gp):
+    """``casadi_mean_gradient_batch`` (the SSGPs' analytic gradient of the random features;
+    the exact GP's by AD) against ``predict`` and ``predict_gradient`` at every column, with
+    the full and the mean-only parameter vectors."""
+    Z, Y, Zt, _ = data
+    model = {
+        "exact": lambda: ExactGP(optimize=False, hyperparameters=exact_gp.hyperparameters_
+                                 ).fit(Z[:40], Y[:40]),
+        "ssgp": lambda: SSGP(20, hyperparameters=exact_gp).fit(Z, Y),
+        "incremental": lambda: IncrementalSSGP(20, forgetting_factor=0.97,
+                                               hyperparameters=exact_gp).fit(Z[:60], Y[:60]),
+        "linear": lambda: IncrementalSSGP(12, forgetting_factor=0.98, linear_features=True,
+                                          n_restarts=0, random_state=2).fit(Z[:60], Y[:60]),
+        "masked": lambda: IncrementalSSGP(12, linear_features=[0, 2], n_restarts=0,
+                                          random_state=2).fit(Z[:60], Y[:60]),
+        "saturated": lambda: IncrementalSSGP(12, linear_features=[1], input_saturation=1.5,
+                                             n_restarts=0, random_state=2).fit(Z[:60], Y[:60]),
+    }[kind]()
+    if isinstance(model, IncrementalSSGP):
+        model.update(Z[60:70], Y[60:70])
+    Zq = np.vstack([Zt[:6], Zt[6:7] * 4.0])  # the last point far out (saturated inputs)
+    for values in (model.casadi_param_values(), model.casadi_mean_param_values()):
+        Zs, theta = ca.MX.sym("Z", 3, Zq.shape[0]), ca.MX.sym("theta", values.size)
+        mean, grads = model.casadi_mean_gradient_batch(Zs, theta)
+        fn = ca.Function("mg", [Zs, theta], [mean, *grads])
+        out = fn(Zq.T, values)
+        np.testing.assert_allclose(np.asarray(out[0]).T, model.predict(Zq), rtol=1e-10,
+                                   atol=1e-10)
+        G = model.predict_gradient(Zq)  # (N, d_out, d_in)
+        for j, g in enumerate(out[1:]):
+            np.testing.assert_allclose(np.asarray(g).T, G[:, j, :], rtol=1e-9, atol=1e-9)
+
+
 # ---------------------------------------------------------------------------- bad inputs
 def _learners(exact_gp):
     return [

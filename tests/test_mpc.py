@@ -734,6 +734,39 @@ def test_the_rti_steps_compiled_expansion_is_the_numeric_one(term_name, kappa):
     assert accepted == 3
 
 
+@pytest.mark.parametrize("learner", ["ssgp", "linear"])
+def test_the_pattern_terms_gap_from_the_expansion_is_the_ads(learner):
+    """The pattern term's adjoint correction inside the compiled step comes from the
+    expansion's own Jacobians (``jacobian_gap_nodes_expr``, no second pass through the
+    learner): equal to the gradient of ``jacobian_gap_expr`` by AD at the same point, with
+    the full and the mean-only parameter vectors."""
+    env = gym.make(DUBINS)
+    model = (online_ssgp(10) if learner == "ssgp"
+             else online_ssgp(10, linear_features=True, input_saturation=30.0))
+    agent = PseudospectralMPC.from_env(env, model, scheme="rti",
+                                       learned_dynamics="linearized-pattern")
+    agent.pretrain(collect_initial_data(env, 60, seed=0))
+    obs, _ = env.reset(seed=0)
+    agent.act(obs)
+    planner, term = agent.planner, agent.planner.planning.term
+    p = planner.planning.param_values()
+    ws = agent.plan.solution.nlp_x
+    sol = planner.ocp.solution_from_primal(ws, p, status="s", success=True)
+    q = term.node_param_values(sol.x_nodes, sol.u)
+    lam = np.random.default_rng(0).standard_normal(planner.ocp.nlp["g"].numel())
+    for theta in (agent.learner.casadi_param_values(), term.expansion_param_values()):
+        W, T = ca.MX.sym("w", ws.size), ca.MX.sym("theta", theta.size)
+        P = ca.MX.sym("p", p.size + q.size)
+        expansion = term.node_expansion_expr(*planner._nodes(W), T)
+        values = []
+        for given in (expansion, None):
+            offset, lam_sym = planner._gap_offset(W, P, T, theta.size, given)
+            fn = ca.Function("gap", [W, P, T, lam_sym], [offset])
+            values.append(np.asarray(fn(ws, np.concatenate([p, q.ravel()]), theta, lam)))
+        assert np.max(np.abs(values[1])) > 0
+        np.testing.assert_allclose(values[0], values[1], rtol=1e-10, atol=1e-12)
+
+
 def test_a_qp_plugin_that_raises_is_a_rejected_step_not_a_crash():
     env = gym.make(CART, scenario="gp")
     obs, _ = env.reset(seed=0)

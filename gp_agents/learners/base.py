@@ -23,7 +23,7 @@ from .casadi_export import ParamLayout, sym_saturate, sym_standardize
 from .hyperparameters import GPHyperparameters
 from .standardization import Standardizer
 
-__all__ = ["BaseGPLearner"]
+__all__ = ["BaseGPLearner", "mean_gradient_batch"]
 
 
 class BaseGPLearner(ABC):
@@ -236,6 +236,47 @@ class BaseGPLearner(ABC):
         return self._sym_rows(theta, variance,
                               lambda j: self._sym_mean_var_batch(Zs, theta, j, variance))
 
+    def casadi_mean_gradient_batch(self, Z: ca.MX, theta: ca.MX) -> tuple[ca.MX, list[ca.MX]]:
+        """:meth:`casadi_mean_batch` and its gradient in the inputs at every column of ``Z``
+        (d_in, M), as matrix operations: the mean (d_out, M) and, per output j, the (d_in, M)
+        matrix whose column k is ``d mean_j / d z`` at column k (column k of the mean depends
+        on column k of ``Z`` only), equal to :meth:`predict_gradient`. Learners with an
+        analytic gradient (:meth:`_sym_mean_grad_batch`) give it without automatic
+        differentiation; the others by reverse-mode AD of :meth:`casadi_mean_batch`."""
+        self._check_fitted()
+        d, M = self.n_features_in_, Z.shape[1]
+        if Z.shape[0] != d:
+            raise ValueError(f"Z must have {d} rows (one column per point), got {Z.shape}")
+        layout = self._layout_for(theta)
+        V = (Z - ca.repmat(layout.unpack(theta, "z_mean"), 1, M)) / ca.repmat(
+            layout.unpack(theta, "z_std"), 1, M)
+        saturation = self.standardizer_.input_saturation
+        if np.isfinite(saturation):  # Zs = s tanh(V / s), dZs/dZ = (1 - tanh^2) / z_std
+            t = ca.tanh(V / saturation)
+            Zs, dzs = saturation * t, (1.0 - t * t) / ca.repmat(
+                layout.unpack(theta, "z_std"), 1, M)
+        else:
+            Zs, dzs = V, 1.0 / ca.repmat(layout.unpack(theta, "z_std"), 1, M)
+        y_mean, y_std = layout.unpack(theta, "y_mean"), layout.unpack(theta, "y_std")
+        rows, grads = [], []
+        for j in range(self.n_outputs_):
+            pair = self._sym_mean_grad_batch(Zs, theta, j)
+            if pair is None:  # reverse-mode AD of the standardized mean
+                Zsym, tsym = ca.MX.sym("Zs", d, M), ca.MX.sym("theta", theta.shape[0])
+                m = self._sym_mean_var_batch(Zsym, tsym, j, False)[0]
+                pair = tuple(ca.Function("mean_grad", [Zsym, tsym],
+                                         [m, ca.gradient(ca.sum2(m), Zsym)])(Zs, theta))
+            m, g = pair
+            rows.append(y_mean[j] + y_std[j] * m)
+            grads.append(y_std[j] * g * dzs)
+        return ca.vertcat(*rows), grads
+
+    def _sym_mean_grad_batch(self, Zs: ca.MX, theta: ca.MX, j: int
+                             ) -> tuple[ca.MX, ca.MX] | None:
+        """Output ``j``'s standardized mean (1, M) at the standardized columns ``Zs`` (d_in, M)
+        and its analytic gradient in them (d_in, M); None (the default): not available, AD."""
+        return None
+
     def casadi_mean(self, z: ca.SX | ca.MX, theta: ca.SX | ca.MX) -> ca.SX | ca.MX:
         """Predictive mean as a CasADi expression.
 
@@ -259,3 +300,17 @@ class BaseGPLearner(ABC):
             (d_out, 1) expression equal to ``predict(z.T, return_std=True)[1][0] ** 2``.
         """
         return self._sym_outputs(z, theta, variance=True)
+
+
+def mean_gradient_batch(learner: Any, Z: ca.MX, theta: ca.MX) -> tuple[ca.MX, list[ca.MX]]:
+    """``learner.casadi_mean_gradient_batch(Z, theta)``, or for a learner without it (one with
+    only ``casadi_mean_batch``) the same by reverse-mode AD: the mean (d_out, M) at the columns
+    of ``Z`` (d_in, M) and per output the (d_in, M) gradients."""
+    method = getattr(learner, "casadi_mean_gradient_batch", None)
+    if method is not None:
+        return method(Z, theta)
+    Zsym, tsym = ca.MX.sym("Z", *Z.shape), ca.MX.sym("theta", theta.shape[0])
+    mean = learner.casadi_mean_batch(Zsym, tsym)
+    grads = [ca.gradient(ca.sum2(mean[j, :]), Zsym) for j in range(mean.shape[0])]
+    out = ca.Function("mean_grad", [Zsym, tsym], [mean, *grads])(Z, theta)
+    return out[0], list(out[1:])

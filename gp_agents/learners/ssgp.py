@@ -484,6 +484,31 @@ class SSGP(BaseGPLearner):
         v = ca.mtimes(lay.unpack(theta, f"Rinv_{j}").T, phi)
         return mean, lay.unpack(theta, f"sn_{j}") ** 2 * (1.0 + ca.sum1(v**2))
 
+    def _sym_mean_grad_batch(self, Zs: ca.MX, theta: ca.MX, j: int) -> tuple[ca.MX, ca.MX]:
+        """The mean of :meth:`_sym_mean_var_batch` (the same operations) and its analytic
+        gradient in the standardized inputs: with ``U = Omega' Zs`` and ``c = sigma_s /
+        sqrt(r)``, ``d mean / d Zs = Omega (c (w_s o cos U - w_c o sin U))`` (+ ``sigma_l``
+        times the linear weights on the masked columns)."""
+        lay = self._layout_for(theta)
+        omega = lay.unpack(theta, f"omega_{j}")
+        r, M = omega.shape[1], Zs.shape[1]
+        arg = ca.mtimes(omega.T, Zs)  # (r, M)
+        cos, sin = ca.cos(arg), ca.sin(arg)
+        c = lay.unpack(theta, f"sf_{j}") / np.sqrt(r)
+        phi = c * ca.vertcat(cos, sin)
+        w = lay.unpack(theta, f"w_{j}")
+        if self.linear_std_ is not None:
+            phi = ca.vertcat(phi, lay.unpack(theta, f"sl_{j}") * self._sym_masked(Zs))
+        mean = ca.mtimes(w.T, phi)
+        H = c * (ca.repmat(w[r:2 * r], 1, M) * cos - ca.repmat(w[:r], 1, M) * sin)
+        grad = ca.mtimes(omega, H)  # (d_in, M)
+        if self.linear_std_ is not None:
+            slope = lay.unpack(theta, f"sl_{j}") * w[2 * r:]
+            if not np.all(self.linear_mask_ == 1.0):
+                slope = slope * ca.DM(self.linear_mask_)
+            grad = grad + ca.repmat(slope, 1, M)
+        return mean, grad
+
     def _sym_mean_var(
         self, zs: ca.SX | ca.MX, theta: ca.SX | ca.MX, j: int, variance: bool
     ) -> tuple[ca.SX | ca.MX, ca.SX | ca.MX | None]:

@@ -24,6 +24,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+from gp_agents.learners.base import mean_gradient_batch
 from gp_agents.mpc.gp_in_nlp import not_fitted
 from gp_agents.mpc.learned_term import LearnedTerm
 from gp_agents.pseudospectral import OCPSolution
@@ -146,50 +147,80 @@ class LinearizedGP(LearnedTerm):
         """:meth:`node_param_values` as a CasADi expression, for a step compiled as one
         function (the real-time iteration): the expansion about node states X (n, M) and
         controls U (m, M) with the learner's parameters theta (P, 1); (n_node_params, M), node
-        k's column equal to row k of ``node_param_values(X.T, U.T)``.
+        k's column equal to row k of ``node_param_values(X.T, U.T)``
+        (:meth:`node_expansion_expr`'s ``"Q"``)."""
+        return self.node_expansion_expr(X, U, theta)["Q"]
 
-        The mean at all nodes at once by matrix operations (the learner's
-        ``casadi_mean_batch``); its Jacobian in the learner's inputs is block diagonal (node
-        k's mean depends on node k's inputs only) and is chained with each node's input-map
-        Jacobian. (An ad-hoc timing on the quadrotor, not kept in the repository, found this
-        form the fastest of four: a mapped per-node MX function, forward derivatives seeded
-        at every node and the learner's scalar SX graph were slower; the step's time is what
-        the ``rti`` preset measures.)"""
+    def node_expansion_expr(self, X: ca.MX, U: ca.MX, theta: ca.MX) -> dict[str, ca.MX]:
+        """The expansion about node states X (n, M) and controls U (m, M) as matrix operations
+        over all nodes at once, nothing per node: ``"Q"`` (n_node_params, M), and what a
+        Jacobian-gap correction reuses (:meth:`jacobian_gap_nodes_expr`): ``"J"``, the learned
+        mean's Jacobians in ``[x; u]`` side by side (d_out, (n + m) M; node k's block is
+        columns ``k (n + m) ...``), ``"E"``, the (M, (n + m) M) 0/1 matrix that repeats a
+        node's column over its block.
+
+        The mean and its gradient in the learner's inputs come from the learner at once
+        (``casadi_mean_gradient_batch``: the random features' analytic gradient for the
+        SSGPs), chained with the input map's Jacobians: ``J[j, block k] = sum_i
+        G_j[i, k] dZ[i, block k]`` as one product with ``E`` and one elementwise product per
+        output. (It replaced the reverse-mode AD of the batched mean and a product per node,
+        study ``rti_step_profile``.)"""
         res = self.residual
         n, m = res.model.n_states, res.model.n_controls
-        M, d_in, d_out = X.shape[1], res.n_inputs, res.n_outputs
-        Z, dZ = res.input_function(jacobian=True).map(M)(X, U)
-        Zs, ts = ca.MX.sym("Z", d_in, M), ca.MX.sym("theta", theta.shape)
-        mean_s = self.learner.casadi_mean_batch(Zs, ts)
-        G = ca.jacobian(ca.vec(mean_s), ca.vec(Zs))
-        mean, G = ca.Function("learned_mean_jacobian", [Zs, ts], [mean_s, G])(Z, theta)
-        points = ca.vertcat(X, U)
+        M, d_out, nx = X.shape[1], res.n_outputs, n + m
+        Z, dZ = res.input_function(jacobian=True).map(M)(X, U)  # (d_in, M), (d_in, nx M)
+        mean, grads = mean_gradient_batch(self.learner, Z, theta)
+        E = ca.DM(ca.Sparsity.triplet(M, nx * M, [k for k in range(M) for _ in range(nx)],
+                                      list(range(nx * M))), 1.0)
+        J = ca.vertcat(*[ca.sum1(ca.mtimes(g, E) * dZ) for g in grads])  # (d_out, nx M)
+        planned = self._planned_jacobian_expr(J, M)
+        points = ca.reshape(ca.vertcat(X, U), 1, nx * M)  # node k's [x; u] in block k
+        c = mean - ca.mtimes(planned * ca.repmat(points, d_out, 1), E.T)
+        blocks = [c, ca.reshape(J, d_out * nx, M)[self._entry_rows(), :]]
         if self.variance:
             var = self.learner.casadi_variance_batch(Z, theta)
             unc = res.uncertain_indices
-        columns = []
-        for k in range(M):
-            J = ca.mtimes(G[k * d_out:(k + 1) * d_out, k * d_in:(k + 1) * d_in],
-                          dZ[:, k * (n + m):(k + 1) * (n + m)])
-            col = self._node_expansion_expr(mean[:, k], J, points[:, k])
-            if self.variance:
-                col += [var[unc.index(0), k], var[unc.index(1), k]]
-            columns.append(ca.vertcat(*col))
-        return ca.horzcat(*columns)
+            blocks += [var[unc.index(0), :], var[unc.index(1), :]]
+        return {"Q": ca.vertcat(*blocks), "J": J, "E": E}
 
-    def _node_expansion_expr(self, mean: ca.MX, J: ca.MX, point: ca.MX) -> list[ca.MX]:
-        """One node's ``[c_k; vec(J_k[:, cols])]`` from its mean (d_out,), Jacobian J
-        (d_out, n + m) and point ``[xb_k; ub_k]`` (symbolic :meth:`node_param_values`)."""
-        return [mean - ca.mtimes(J, point), ca.vec(J[:, list(self.residual.jacobian_columns)])]
+    def _planned_jacobian_expr(self, J: ca.MX, M: int) -> ca.MX:
+        """The part of the Jacobians ``J`` (d_out, (n + m) M, :meth:`node_expansion_expr`) the
+        NLP plans with (symbolic :meth:`_planned_jacobian`): all of it."""
+        return J
+
+    def _entry_rows(self) -> list[int]:
+        """Rows of a node's ``vec(J_k)`` (column-major, d_out (n + m)) that are its Jacobian
+        node parameters (symbolic :meth:`_jacobian_entries`): ``vec(J_k[:, cols])``."""
+        d = self.residual.n_outputs
+        return [j + d * c for c in self.residual.jacobian_columns for j in range(d)]
+
+    def jacobian_gap_nodes_expr(self, expansion: dict[str, ca.MX], mu: ca.MX, Q: ca.MX
+                                ) -> ca.MX | None:
+        """The gradient of :meth:`jacobian_gap_expr` in the nodes' ``[x; u]`` ((n + m, M)) at
+        the expansion's own point, from :meth:`node_expansion_expr`'s Jacobians (no second
+        pass through the learner); None for a term without a gap (this one) or without it
+        in this form."""
+        return None
+
+    def _rates_batch(self, P: ca.MX, Q: ca.MX) -> ca.MX:
+        """:meth:`rates` at every node at once: node points ``P = [X; U]`` (n + m, M) and node
+        parameters Q (n_node_params, M) -> (d_out, M)."""
+        d, cols = self.residual.n_outputs, list(self.residual.jacobian_columns)
+        if not cols:
+            return Q[:d, :]
+        nc = len(cols)
+        S = ca.DM(ca.Sparsity.triplet(d, d * nc, [j for _ in cols for j in range(d)],
+                                      list(range(d * nc))), 1.0)
+        rows = [c for c in cols for _ in range(d)]
+        return Q[:d, :] + ca.mtimes(S, Q[d:self._n_jacobian, :] * P[rows, :])
 
     def plan_error_expr(self, X: ca.MX, U: ca.MX, Q: ca.MX, theta: ca.MX) -> ca.MX:
         """:meth:`plan_error` as a CasADi expression: the error of the expansion ``Q``
         (n_node_params, M) at node states X (n, M) and controls U (m, M), as a fraction of its
         tolerance (scalar)."""
-        mean = self._mean_function(X.shape[1], theta.numel())(ca.vertcat(X, U), theta)
-        predicted = ca.horzcat(*[self.rates(X[:, k], U[:, k], None, Q[:, k])
-                                 for k in range(X.shape[1])])
-        err = ca.fabs(mean - predicted)
+        P = ca.vertcat(X, U)
+        mean = self._mean_function(X.shape[1], theta.numel())(P, theta)
+        err = ca.fabs(mean - self._rates_batch(P, Q))
         ratios = [ca.mmax(err[j, :]) / (self.tol * ca.mmax(ca.fabs(mean[j, :])) + 1e-3)
                   for j in range(self.residual.n_outputs)]
         return ca.mmax(ca.vertcat(*ratios))

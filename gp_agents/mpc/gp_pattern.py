@@ -109,10 +109,36 @@ class PatternLinearizedGP(LinearizedGP):
         rows, cols = (list(v) for v in zip(*self.pattern, strict=True))
         return jac[:, rows, cols]
 
-    def _node_expansion_expr(self, mean: ca.MX, J: ca.MX, point: ca.MX) -> list[ca.MX]:
-        kept = J * ca.DM(self._mask)
-        entries = [J[j, c] for j, c in self.pattern]
-        return [mean - ca.mtimes(kept, point), ca.vertcat(*entries) if entries else ca.MX(0, 1)]
+    def _planned_jacobian_expr(self, J: ca.MX, M: int) -> ca.MX:
+        return J * ca.repmat(ca.DM(self._mask), 1, M)
+
+    def _entry_rows(self) -> list[int]:
+        d = self.residual.n_outputs
+        return [j + d * c for j, c in self.pattern]
+
+    def _rates_batch(self, P: ca.MX, Q: ca.MX) -> ca.MX:
+        d, e = self.residual.n_outputs, len(self.pattern)
+        if not e:
+            return Q[:d, :]
+        rows, cols = (list(v) for v in zip(*self.pattern, strict=True))
+        place = ca.DM(ca.Sparsity.triplet(d, e, rows, list(range(e))), 1.0)
+        return Q[:d, :] + ca.mtimes(place, Q[d:d + e, :] * P[cols, :])
+
+    def jacobian_gap_nodes_expr(self, expansion: dict[str, ca.MX], mu: ca.MX, Q: ca.MX
+                                ) -> ca.MX:
+        """The gradient of :meth:`jacobian_gap_expr` in the nodes' ``[x; u]`` ((n + m, M)) at
+        the expansion's point: ``J_k' mu_k`` minus the planned entries' part (``Q``'s
+        ``S o J_k`` weighted by ``mu_k``), with ``J`` the expansion's own Jacobians (the
+        learner is not evaluated again)."""
+        J, E = expansion["J"], expansion["E"]
+        d, e = self.residual.n_outputs, len(self.pattern)
+        nx, M = J.shape[1] // mu.shape[1], mu.shape[1]
+        full = ca.reshape(ca.sum1(J * ca.mtimes(mu, E)), nx, M)
+        if not e:
+            return full
+        rows, cols = (list(v) for v in zip(*self.pattern, strict=True))
+        place = ca.DM(ca.Sparsity.triplet(nx, e, cols, list(range(e))), 1.0)
+        return full - ca.mtimes(place, mu[rows, :] * Q[d:d + e, :])
 
     def jacobian_gap_expr(self, X: ca.MX, U: ca.MX, theta: ca.MX, mu: ca.MX,
                           Q: ca.MX) -> ca.MX:

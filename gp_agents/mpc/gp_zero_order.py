@@ -100,6 +100,13 @@ class ZeroOrderGP(LinearizedGP):
         unc = self.residual.uncertain_indices
         return ca.vertcat(mean, var[unc.index(0), :], var[unc.index(1), :])
 
+    def node_expansion_expr(self, X: ca.MX, U: ca.MX, theta: ca.MX) -> dict[str, ca.MX]:
+        """``{"Q": node_param_expr(X, U, theta)}`` (no Jacobian to share)."""
+        return {"Q": self.node_param_expr(X, U, theta)}
+
+    def _rates_batch(self, P: ca.MX, Q: ca.MX) -> ca.MX:
+        return Q[:self.residual.n_outputs, :]
+
     def jacobian_gap_expr(self, X: ca.MX, U: ca.MX, theta: ca.MX, mu: ca.MX,
                           Q: ca.MX) -> ca.MX:
         """``sum_k mu_k' mean(x_k, u_k)`` (scalar) for node states X (n, M), controls U (m, M)

@@ -110,6 +110,18 @@ class LearnedTerm:
         raise NotImplementedError(f"the learned term {self.name!r} has no symbolic node "
                                   "parameters")
 
+    def node_expansion_expr(self, X: Any, U: Any, theta: Any) -> dict[str, Any]:
+        """:meth:`node_param_expr` as ``{"Q": ...}``, with whatever else of the expansion a
+        term's :meth:`jacobian_gap_nodes_expr` reuses (default: ``Q`` alone)."""
+        return {"Q": self.node_param_expr(X, U, theta)}
+
+    def jacobian_gap_nodes_expr(self, expansion: dict[str, Any], mu: Any, Q: Any) -> Any | None:
+        """The gradient of :meth:`jacobian_gap_expr` in the nodes' ``[x; u]`` ((n + m, M)) at
+        the point of ``expansion`` (:meth:`node_expansion_expr`), computed from it; None (the
+        default): not available, the compiled step differentiates :meth:`jacobian_gap_expr`
+        instead."""
+        return None
+
     def plan_error_expr(self, X: Any, U: Any, Q: Any, theta: Any) -> Any:
         """:meth:`plan_error` as a CasADi expression (scalar) of a plan's node states X
         (n, M), controls U (m, M), the node parameters Q (n_node_params, M) it was planned

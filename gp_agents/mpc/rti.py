@@ -274,11 +274,15 @@ class RTIPlanner(Planner):
         return (ca.reshape(w[ix.ravel().tolist()], n, M),
                 ca.reshape(w[iu.ravel().tolist()], m, M))
 
-    def _gap_offset(self, ws: ca.MX, P_full: ca.MX, theta: ca.MX, n_theta: int
-                    ) -> tuple[Any, ca.MX | None]:
+    def _gap_offset(self, ws: ca.MX, P_full: ca.MX, theta: ca.MX, n_theta: int,
+                    expansion: dict[str, Any] | None = None) -> tuple[Any, ca.MX | None]:
         """The adjoint correction of the QP's gradient at ``ws`` for a term with a Jacobian
         gap, ``(J_exact - J_nlp)' lam_prev``, and the symbol of the previous multipliers it
-        reads; zeros and None for any other term."""
+        reads; zeros and None for any other term. ``expansion``: the term's expansion at
+        ``ws`` (:meth:`LearnedTerm.node_expansion_expr`), from which a term computes the gap's
+        gradient at the nodes without evaluating the learner again
+        (:meth:`LearnedTerm.jacobian_gap_nodes_expr`); else (or for a term without that) the
+        gradient of :meth:`LearnedTerm.jacobian_gap_expr` by AD."""
         ocp, term = self.ocp, self.planning.term
         M, d = ocp.node_indices()[0].shape[0], term.residual.n_outputs
         n_q = term.n_node_params()
@@ -297,9 +301,23 @@ class RTIPlanner(Planner):
         tail = adjoint(ws, P_full, lam_prev)[P_full.numel() - M * n_q:]
         mu = ca.reshape(tail, n_q, M)[:d, :]
         Q = ca.reshape(P_full[P_full.numel() - M * n_q:], n_q, M)
+        nodes = (None if expansion is None
+                 else term.jacobian_gap_nodes_expr(expansion, mu, Q))
+        if nodes is not None:  # (n + m, M) at the nodes, placed into w
+            return ca.mtimes(self._node_scatter(), ca.vec(nodes)), lam_prev
         gap_gradient = ca.Function("rti_jacobian_gap", [w_sym, t_sym, mu_sym, q_sym],
                                    [ca.gradient(gap, w_sym)])
         return gap_gradient(ws, theta, mu, Q), lam_prev
+
+    def _node_scatter(self) -> ca.DM:
+        """The (n_w, (n + m) M) 0/1 matrix that adds node k's ``[x; u]`` entries (column block
+        k) into their NLP variables: the transpose of :meth:`_nodes`' selection."""
+        ix, iu = self.ocp.node_indices()
+        n, m = self.planning.model.n_states, self.planning.model.n_controls
+        M = ix.shape[0]
+        rows = np.hstack([ix, iu]).ravel()  # node k's [x; u] indices, node after node
+        return ca.DM(ca.Sparsity.triplet(self.ocp.n_variables, (n + m) * M,
+                                         [int(r) for r in rows], list(range((n + m) * M))), 1.0)
 
     def _learned_step(self, n_theta: int, shift: bool = True) -> BufferedFunction:
         """The warm step with a node-parameter term (built once per learner size ``n_theta``):
@@ -321,10 +339,11 @@ class RTIPlanner(Planner):
         p, theta = ca.MX.sym("p", ocp.nlp["p"].numel() - M * term.n_node_params()), \
             ca.MX.sym("theta", n_theta)
         ws = (self._shift if shift else self._fix_x0)(w_prev, x0)
-        Q = term.node_param_expr(*self._nodes(ws), theta)
+        expansion = term.node_expansion_expr(*self._nodes(ws), theta)
+        Q = expansion["Q"]
         P_full = ca.vertcat(p, ca.vec(Q))
         inputs, names = [w_prev, x0, p, theta], ["w_prev", "x0", "p", "theta"]
-        grad_offset, lam_prev = self._gap_offset(ws, P_full, theta, n_theta)
+        grad_offset, lam_prev = self._gap_offset(ws, P_full, theta, n_theta, expansion)
         if lam_prev is not None:
             inputs, names = [*inputs, lam_prev], [*names, "lam_prev"]
         out = self._qp_step(ws, P_full, grad_offset)

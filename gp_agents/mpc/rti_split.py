@@ -85,10 +85,11 @@ class SplitRTIPlanner(RTIPlanner):
             M = ocp.node_indices()[0].shape[0]
             p = ca.MX.sym("p", p_size - M * term.n_node_params())
             theta = ca.MX.sym("theta", n_theta)
-            Q = term.node_param_expr(*self._nodes(ws), theta)
+            expansion = term.node_expansion_expr(*self._nodes(ws), theta)
+            Q = expansion["Q"]
             P_full = ca.vertcat(p, ca.vec(Q))
             inputs, names = [*inputs, p, theta], [*names, "p", "theta"]
-            grad_offset, lam = self._gap_offset(ws, P_full, theta, n_theta)
+            grad_offset, lam = self._gap_offset(ws, P_full, theta, n_theta, expansion)
             if lam is not None:
                 inputs, names = [*inputs, lam], [*names, "lam_prev"]
         else:
