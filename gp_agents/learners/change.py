@@ -100,7 +100,7 @@ class ChangeDetector:
         fewer than ``history // 2`` unsurprising errors have been seen."""
         if len(self._errors[0]) < max(1, int(self.history) // 2):
             return None
-        return self.ratio * np.array([np.median(e) for e in self._errors])
+        return self.ratio * np.median(np.array(self._errors), axis=1)  # rows of one length
 
     def step(self, error: np.ndarray) -> bool:
         """Take one sample's (d_out,) one-step prediction error; True when it completes a run

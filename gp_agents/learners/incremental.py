@@ -251,10 +251,13 @@ class IncrementalSSGP(SSGP):
             return self
         zero = std.y_mean / std.y_std  # standardized error of the zero residual: ys + this
         for zs, ys in zip(Zs, Ys, strict=True):
-            error = ys - self._predict_std(zs[None], return_var=False)[0][0]
+            # the sample's features, computed once: its prediction and its factor update
+            features = [self._features(zs[None], j) for j in range(self.n_outputs_)]
+            W = self.weights_
+            error = ys - np.array([(F @ w)[0] for F, w in zip(features, W, strict=True)])
             if fallback is not None:
                 fallback.step(error, ys + zero)
-            self._add(zs[None], ys[None])
+            self._add(zs[None], ys[None], features)
             if detector is not None:
                 self._detect(zs, ys, error)
         return self
@@ -313,9 +316,10 @@ class IncrementalSSGP(SSGP):
         det.reset(self.n_outputs_)
         self._run = []
 
-    def _add(self, Zs: np.ndarray, Ys: np.ndarray) -> None:
+    def _add(self, Zs: np.ndarray, Ys: np.ndarray,
+             features: list[np.ndarray] | None = None) -> None:
         """The factor update of the module docstring for standardized samples (p, d_in),
-        (p, d_out)."""
+        (p, d_out); ``features``: their feature rows per output if already computed."""
         lam, m = self._check_config()
         hyp = self.hyperparameters_
         assert hyp is not None
@@ -334,7 +338,7 @@ class IncrementalSSGP(SSGP):
         new_b = np.empty_like(self.b_)
         rows = []
         for j in range(self.n_outputs_):
-            F = self._features(Zs, j)
+            F = self._features(Zs, j) if features is None else features[j]
             Bj = F * np.sqrt(decay)[:, None]
             if restored.size:
                 E = np.zeros((restored.size, D))
@@ -345,12 +349,13 @@ class IncrementalSSGP(SSGP):
         # Everything that can fail is checked before the factors are touched: the rows are
         # bounded (|phi| = sigma_s, plus sigma_l |z| for linear features), so the updated
         # factors are finite whenever these are.
-        if not (np.all(np.isfinite(new_b)) and all(np.all(np.isfinite(B)) for B in rows)):
+        if not (np.isfinite(new_b.sum()) and np.isfinite(sum(B.sum() for B in rows))):
             raise FloatingPointError("update produced non-finite values; state left unchanged")
         new_chol = [
             cholesky_add_rows(R, B, np.sqrt(lam**p)) for R, B in zip(self._chol, rows, strict=True)
         ]
-        if not all(np.all(np.isfinite(np.diag(R))) and np.all(np.diag(R) != 0) for R in new_chol):
+        diagonals = np.array([R.diagonal() for R in new_chol])
+        if not (np.isfinite(diagonals.sum()) and np.all(diagonals != 0)):
             raise FloatingPointError("update produced a singular factor; state left unchanged")
         self._set_state(new_chol, new_b, self.n_samples_seen_ + p, n_state=n0 + p)
 
