@@ -19,10 +19,11 @@ Two measurements per system, in one process, interleaved:
    where the last closed loop stopped, each compiled piece as its own
    :class:`~gp_agents.pseudospectral.BufferedFunction` (the step's own calling convention):
    the whole compiled step; the learned term's expansion at the shifted plan's nodes; the
-   Jacobian gap's adjoint correction (a term with one); the QP step alone with the expanded
-   parameters (its active-set iterations); the expansion error at the new plan; the nominal
-   compiled step at the same point; and the Python-side learner pieces: one sample's
-   ``learner.update`` and the export of its parameters (``expansion_param_values``).
+   expansion with the Jacobian gap's adjoint correction (a term with one); the QP step alone
+   with the expanded parameters (its active-set iterations); the expansion error at the new
+   plan; the nominal compiled step at the same point; and the Python-side learner pieces: one
+   sample's ``learner.update``, its LAPACK factor updates and weight solves alone, and the
+   export of its parameters (``expansion_param_values``).
 
 The report (``report.md``) is generated from the measured numbers (``profile.json``).
 """
@@ -117,13 +118,15 @@ def pieces(nominal: Any, learning: Any, obs: np.ndarray, calls: int) -> dict[str
     out["expansion"] = _time(lambda: expansion(ws, theta), calls)
     P_full = np.concatenate([p, Q])
     grad_offset = np.zeros(n_w)
-    if step.fn.n_in() == 5:
+    if step.fn.n_in() == 5:  # the gap's gradient comes from the expansion's Jacobians
         Pm = ca.MX.sym("P", P_full.size)
-        offset, lam_sym = pl._gap_offset(W, Pm, T, theta.size)
-        gap = BufferedFunction(ca.Function("profile_gap", [W, Pm, T, lam_sym], [offset]))
+        offset, lam_sym = pl._gap_offset(W, Pm, T, theta.size,
+                                         term.node_expansion_expr(*pl._nodes(W), T))
+        gap = BufferedFunction(ca.Function("profile_gap", [W, Pm, T, lam_sym],
+                                           [ca.densify(offset)]))
         lam = args[4]
         grad_offset = gap(ws, P_full, theta, lam)[0]
-        out["gap correction"] = _time(lambda: gap(ws, P_full, theta, lam), calls)
+        out["expansion + gap correction"] = _time(lambda: gap(ws, P_full, theta, lam), calls)
     qp = BufferedFunction(pl._qp_step)
     res = qp(ws, P_full, grad_offset)
     out["qp iterations"] = float(res[5][0])
@@ -144,6 +147,19 @@ def pieces(nominal: Any, learning: Any, obs: np.ndarray, calls: int) -> dict[str
     Z, Y = learning.residual.targets(X[:1], U[:1], X[1:])
     scratch = copy.deepcopy(learner)
     out["learner update (1 sample)"] = _time(lambda: scratch.update(Z, Y), calls)
+    # its LAPACK floor: the factor updates (one dtpqrt per output with the sample's row and
+    # the restored prior row) and the weights' two triangular solves per output
+    from gp_agents.learners.cholesky_update import cholesky_add_rows
+
+    rows = np.ones((2, learner._chol[0].shape[0])) * 1e-3
+    out["factor updates (dtpqrt)"] = _time(
+        lambda: [cholesky_add_rows(R, rows, 0.99) for R in learner._chol], calls)
+
+    def weights() -> None:
+        scratch._weights_cache = None
+        scratch.weights_  # noqa: B018
+
+    out["weights solves"] = _time(weights, calls)
     out["parameter export"] = _time(term.expansion_param_values, calls)
     out["planning.param_values"] = _time(pl.planning.param_values, calls)
     return out
@@ -247,8 +263,9 @@ def write_report(out: Path, results: dict[str, Any], command: str, seconds: floa
             f"| {np.nanmedian(split):.2f} ({np.nanmin(split):.2f}-{np.nanmax(split):.2f}) |")
     lines += ["", "Targets of the issue: one-call ratio <= 1.5, split-latency ratio <= 1.2.",
               "", "## Pieces of the learning one-call step (median ms per call)", ""]
-    keys = ["compiled step", "expansion", "gap correction", "QP step", "qp iterations",
-            "expansion error", "nominal compiled step", "learner update (1 sample)",
+    keys = ["compiled step", "expansion", "expansion + gap correction", "QP step",
+            "qp iterations", "expansion error", "nominal compiled step",
+            "learner update (1 sample)", "factor updates (dtpqrt)", "weights solves",
             "parameter export", "planning.param_values", "theta_size"]
     lines += ["| piece | " + " | ".join(results) + " |",
               "|---|" + "---:|" * len(results)]
@@ -267,9 +284,14 @@ def write_report(out: Path, results: dict[str, Any], command: str, seconds: floa
               "*qp iterations* its active-set iterations at this point. *learner update*: "
               "`IncrementalSSGP.update` with one transition (numpy/LAPACK; with the recipe's "
               "change detector and nominal fallback each sample is predicted first). "
-              "*parameter export*: `expansion_param_values()` (the weights' two triangular "
-              "solves per output and the packing into the CasADi vector of *theta_size* "
-              "numbers).", ""]
+              "*factor updates*: its LAPACK part, one `dtpqrt` per output adding two rows "
+              "(the sample's and a restored prior coordinate's); *weights solves*: the two "
+              "triangular solves per output for the weights (done once per update, by the "
+              "export or the next prediction). "
+              "*parameter export*: `expansion_param_values()` (the weights' solves and the "
+              "packing into the CasADi vector of *theta_size* numbers: the mean-only vector, "
+              "`casadi_mean_param_values`). *expansion + gap correction*: the expansion and "
+              "the adjoint correction computed from its Jacobians, as in the step.", ""]
     path = out / "report.md"
     path.write_text("\n".join(lines))
     return path
