@@ -165,6 +165,64 @@ def pieces(nominal: Any, learning: Any, obs: np.ndarray, calls: int) -> dict[str
     return out
 
 
+class _Timed:
+    """Calls ``call`` and adds its wall time to ``into[agent._step]`` (the step it served); a
+    BufferedFunction's ``fn`` (the Function) stays readable as ``.fn``."""
+
+    def __init__(self, call: Callable[..., Any], into: dict[int, float], agent: Any) -> None:
+        self._call, self._into, self._agent = call, into, agent
+        if hasattr(call, "fn"):
+            self.fn = call.fn
+
+    def __call__(self, *args: Any, **kwargs: Any) -> Any:
+        start = time.perf_counter()
+        try:
+            return self._call(*args, **kwargs)
+        finally:
+            k = self._agent._step
+            self._into[k] = self._into.get(k, 0.0) + time.perf_counter() - start
+
+
+def act_breakdown(env: Any, agent: Any, data: Any, seed: int, steps: int) -> dict[str, float]:
+    """Where the learning one-call ``act`` goes, on its plain RTI steps: one closed loop of
+    ``steps`` periods with timers around the learner update (``_flush_learning``: the
+    residual targets and ``learner.update``), the parameter export, the compiled step and the
+    acceptance check (``_accept``, with the solution object); the rest of ``act`` is Python
+    glue (state checks, the action, the diagnostics record). Median ms per piece."""
+    agent.pretrain(data)
+    planner = agent._planner()
+    term = planner.planning.term
+    times: dict[str, dict[int, float]] = {k: {} for k in (
+        "learner update", "parameter export", "compiled step", "acceptance check")}
+    theta = term.expansion_param_values()
+    step = planner._learned_step(theta.size)
+    agent._flush_learning = _Timed(agent._flush_learning, times["learner update"], agent)
+    term.expansion_param_values = _Timed(term.expansion_param_values,
+                                         times["parameter export"], agent)
+    planner._learned_steps[theta.size, True] = _Timed(step, times["compiled step"], agent)
+    planner._accept = _Timed(planner._accept, times["acceptance check"], agent)
+    obs, _ = env.reset(seed=seed)
+    agent.reset()
+    for _ in range(steps):
+        u = agent.act(obs)
+        nxt, _, done, trunc, _ = env.step(u)
+        agent.observe(obs, u, nxt)
+        obs = nxt
+        if done or trunc:
+            break
+    d = agent.diagnostics_arrays()
+    plain = [int(k) for k, s in zip(d["step"], d["status"], strict=True)
+             if str(s) == "RTI" and int(k) > 0]
+    act = dict(zip((int(k) for k in d["step"]), np.asarray(d["act_time"], float),
+                   strict=True))
+    out = {"act": float(np.median([act[k] for k in plain]) * 1e3)}
+    for key, values in times.items():
+        out[key] = float(np.median([values.get(k, 0.0) for k in plain]) * 1e3)
+    out["rest of act (Python)"] = out["act"] - sum(out[k] for k in times)
+    out["plain steps"] = len(plain)
+    return out
+
+
 def run_system(name: str, steps: int, repeats: int, calls: int) -> dict[str, Any]:
     import gymnasium as gym
 
@@ -195,7 +253,9 @@ def run_system(name: str, steps: int, repeats: int, calls: int) -> dict[str, Any
                          **{k: v for k, v in r.items() if k != "obs"}})
     assert last_obs is not None
     parts = pieces(agents["nominal rti"], agents["robust rti"], last_obs, calls)
-    return {"rows": rows, "pieces": parts,
+    breakdown = act_breakdown(env, make_mpc(env, "robust", scheme="rti"),
+                              collect_initial_data(env, 200, seed=BASE_SEED), BASE_SEED, steps)
+    return {"rows": rows, "pieces": parts, "act breakdown": breakdown,
             "term": type(agents["robust rti"].term).__name__,
             "qp_solver": repr(agents["robust rti"].qp_solver)}
 
@@ -277,6 +337,17 @@ def write_report(out: Path, results: dict[str, Any], command: str, seconds: floa
                                                                     "theta_size")
                                                 else f"{v:.3f}"))
         lines.append(f"| {k} | " + " | ".join(cells) + " |")
+    lines += ["", "## The learning one-call `act` on its plain steps (median ms; one closed "
+              f"loop of the robust recipe from seed {BASE_SEED} per system)", "",
+              "| piece | " + " | ".join(results) + " |", "|---|" + "---:|" * len(results)]
+    for k in ("act", "learner update", "parameter export", "compiled step",
+              "acceptance check", "rest of act (Python)"):
+        lines.append(f"| {k} | " + " | ".join(
+            f"{res['act breakdown'][k]:.3f}" for res in results.values()) + " |")
+    lines += ["", "*learner update*: `_flush_learning` (the residual targets and "
+              "`learner.update`); *acceptance check*: `_accept` (the safety net's test and "
+              "the solution object); *rest*: `act` less the four (state checks, the action, "
+              "the diagnostics record). Timers add a few microseconds per piece."]
     lines += ["", "*compiled step*: the learning one-call step's one compiled function (shift, "
               "expansion, gap correction, QP, error); the next four rows are its pieces built "
               "as functions of their own (they overlap the whole only approximately: "
