@@ -59,6 +59,30 @@ def _residual(**kw: Any) -> Callable[[], dict[str, Any]]:
     return make
 
 
+def _term(max_linearizations: int = 1, exact: bool = False) -> Callable[[], dict[str, Any]]:
+    def make() -> dict[str, Any]:
+        from gp_agents.mpc import LinearizedGP
+
+        return {"term": "exact" if exact else LinearizedGP(max_linearizations)}
+    return make
+
+
+def _parametric(**kw: Any) -> Callable[[], dict[str, Any]]:
+    """The robust recipe's learner with some of its parts changed (``fallback=False``: no
+    NominalFallback; other keywords: :func:`gp_agents.online_ssgp`'s)."""
+    def make() -> dict[str, Any]:
+        from gp_agents import online_ssgp
+        from gp_agents.learners import INPUT_SATURATION, ChangeDetector, NominalFallback
+
+        fallback = kw.get("fallback", True)
+        args = {"linear_features": "sensitivities", "change_detector": ChangeDetector(),
+                "nominal_fallback": NominalFallback() if fallback else None,
+                "input_saturation": INPUT_SATURATION, **{k: v for k, v in kw.items()
+                                                         if k != "fallback"}}
+        return {"learner": online_ssgp(**args)}
+    return make
+
+
 def _both(*parts: Callable[[], dict[str, Any]]) -> Callable[[], dict[str, Any]]:
     def make() -> dict[str, Any]:
         out: dict[str, Any] = {}
@@ -90,8 +114,18 @@ QUESTIONS: dict[str, tuple[str, str, tuple[int, ...], tuple[Variant, ...]]] = {
     # the learning transient on the cart pole `online`: oracle against the learners
     "transient": ("cartpole", "online", (200,), (
         Variant("oracle", "oracle"),
-        Variant("nominal", "nominal"),
         Variant("robust", "robust", note="the recipe"),
+        # plans with a stale expansion? (one solve per replan about the shifted plan)
+        Variant("robust, relinearize x3", "robust", _term(3),
+                note="up to 3 solves per replan, re-linearized about each plan"),
+        Variant("robust, exact term", "robust", _term(exact=True),
+                note="the learner's mean inside the NLP"),
+        # plans that distrust the model? (the residual switched off)
+        Variant("robust, no fallback", "robust", _parametric(fallback=False),
+                note="without the NominalFallback"),
+        # how the first plans weigh new data
+        Variant("robust, lambda 0.98", "robust", _parametric(forgetting_factor=0.98),
+                note="forgetting factor 0.98 (halves a sample's weight in 34 steps)"),
         Variant("paper", "paper"),
     )),
 }
@@ -112,17 +146,67 @@ def episode(env_name: str, scenario: str, variant: Variant, seed: int, n_init: i
     if learning:
         agent.pretrain(data)
     start = time.perf_counter()
-    run = rollout(env, agent, seed)
+    probe = _Probe(agent)
+    run = rollout(env, probe, seed)
     dt = env.unwrapped.nominal_model.dt
     info = run.final_info
     since = info.get("at_goal_since")
     success = bool(info["success"])
     pumps = _pumps(run.observations)
+    first = _first_at_goal(run.infos)
+    k = round(first / dt) if np.isfinite(first) else len(run.rewards)
     return {"success": success, "cost": float(run.cost),
             "at_goal_since": float(since) if success and since is not None else float("nan"),
             "interaction_s": (n_init * dt + float(since)) if success else float("nan"),
-            "first_at_goal_s": _first_at_goal(run.infos),
-            "pumps": pumps, "wall_s": time.perf_counter() - start}
+            "first_at_goal_s": first,
+            # the cost until the pole first reaches the goal, and after it
+            "cost_swing": -float(np.sum(run.rewards[:k])),
+            "cost_hold": -float(np.sum(run.rewards[k:])),
+            "pumps": pumps, **probe.summary(k), "wall_s": time.perf_counter() - start}
+
+
+class _Probe:
+    """The agent, and what its learner did along the episode: at each transition the learned
+    residual's error against the transition's own residual target (before learning it), the
+    zero residual's (the nominal model's) error, and whether the residual was on."""
+
+    def __init__(self, agent: Any) -> None:
+        self.agent = agent
+        self.rows: list[tuple[float, float, bool]] = []
+
+    def reset(self) -> None:
+        self.agent.reset()
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        return self.agent.act(obs)
+
+    def observe(self, obs: np.ndarray, action: np.ndarray, next_obs: np.ndarray) -> None:
+        agent = self.agent
+        learner = getattr(agent, "learner", None)
+        fitted = learner is not None and hasattr(learner, "n_samples_seen_")
+        if learner is None or not fitted:
+            true = agent.model.step(obs, action) if agent.model is not None else None
+            err = float(np.linalg.norm(np.asarray(true) - next_obs)) if true is not None else 0.0
+            self.rows.append((err, err, True))
+        else:
+            z, y = agent.residual.targets(obs[None], np.asarray(action, float)[None],
+                                          next_obs[None])
+            pred = learner.predict(z)
+            self.rows.append((float(np.linalg.norm(pred - y)), float(np.linalg.norm(y)),
+                              bool(getattr(learner, "residual_on_", True))))
+        agent.observe(obs, action, next_obs)
+
+    def summary(self, k: int) -> dict[str, float]:
+        """Mean errors of the learned and the zero residual (m/s^2, rad/s^2) before step k
+        (the swing-up) and after it, and the steps with the residual off."""
+        if not self.rows:
+            return {}
+        learned, zero, on = (np.array(c) for c in zip(*self.rows, strict=True))
+        def m(a: np.ndarray) -> float:
+            return float(a.mean()) if a.size else float("nan")
+        return {"err_learned_swing": m(learned[:k]), "err_zero_swing": m(zero[:k]),
+                "err_learned_hold": m(learned[k:]), "err_zero_hold": m(zero[k:]),
+                "residual_off_steps": int(np.sum(~on.astype(bool)))}
 
 
 def _first_at_goal(infos: list[dict[str, Any]]) -> float:
@@ -180,8 +264,9 @@ def main(argv: list[str] | None = None) -> None:
                 print(json.dumps(r), flush=True)
     print(f"\n{args.question}: {env_name} `{scenario}`, seeds {args.seeds[0]}-{args.seeds[-1]}")
     print("| variant | n_init | success | cost mean | interaction s (mean of successes) | "
-          "first at goal s | pumps |")
-    print("|---|---:|---:|---:|---:|---:|---:|")
+          "first at goal s | pumps | cost swing / hold | residual error swing (zero's) | "
+          "residual off steps |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for n in n_inits:
         for v in variants:
             rows = [done[(v.name, n, s)] for s in args.seeds if (v.name, n, s) in done]
@@ -190,7 +275,12 @@ def main(argv: list[str] | None = None) -> None:
                   f"{np.mean([r['cost'] for r in rows]):.2f} | "
                   f"{np.nanmean([r['interaction_s'] for r in succ]) if succ else float('nan'):.2f}"
                   f" | {np.nanmean([r['first_at_goal_s'] for r in rows]):.2f} | "
-                  f"{np.mean([r['pumps'] for r in rows]):.1f} |")
+                  f"{np.mean([r['pumps'] for r in rows]):.1f} | "
+                  f"{np.mean([r['cost_swing'] for r in rows]):.2f} / "
+                  f"{np.mean([r['cost_hold'] for r in rows]):.2f} | "
+                  f"{np.nanmean([r.get('err_learned_swing', np.nan) for r in rows]):.2f} "
+                  f"({np.nanmean([r.get('err_zero_swing', np.nan) for r in rows]):.2f}) | "
+                  f"{np.mean([r.get('residual_off_steps', 0) for r in rows]):.1f} |")
 
 
 if __name__ == "__main__":
