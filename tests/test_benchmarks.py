@@ -95,7 +95,8 @@ def test_unknown_names_raise_clear_errors(capsys: pytest.CaptureFixture[str]) ->
         get_preset("nope")
     with pytest.raises(UnknownNameError, match="nominal-mpc"):
         TrialSpec("episode", "cartpole", "online", "lqr", 0).validate()
-    with pytest.raises(UnknownNameError, match="valid envs: cartpole, dubins, pendulum, pilco_cartpole, quadrotor"):
+    with pytest.raises(UnknownNameError,
+                       match="valid envs: cartpole, dubins, pendulum, pilco_cartpole, quadrotor"):
         check_env_scenario("acrobot", "online")
     with pytest.raises(UnknownNameError, match="gp, online"):
         check_env_scenario("cartpole", "paper")
