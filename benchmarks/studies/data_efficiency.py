@@ -41,6 +41,10 @@ class Variant:
     recipe: str
     overrides: Callable[[], dict[str, Any]] = field(default=lambda: {})
     note: str = ""
+    data: str = "own"
+    """``"own"``: ``collect_initial_data`` (the system's data policy); ``"own+swing"``: those
+    and the oracle MPC's episode from another start (data where a swing-up goes: a diagnostic
+    of data coverage); ``"random"``: uniform random forces (PILCO's first trial)."""
 
 
 def _learner(**kw: Any) -> Callable[[], dict[str, Any]]:
@@ -115,6 +119,10 @@ QUESTIONS: dict[str, tuple[str, str, tuple[int, ...], tuple[Variant, ...]]] = {
     "transient": ("cartpole", "online", (200,), (
         Variant("oracle", "oracle"),
         Variant("robust", "robust", note="the recipe"),
+        # how sensitive the swing-up is to any model error: the true model's parameters (but
+        # gravity) all 1% / 3% high, no learning
+        Variant("oracle, parameters +1%", "oracle-off-1"),
+        Variant("oracle, parameters +3%", "oracle-off-3"),
         # plans with a stale expansion? (one solve per replan about the shifted plan)
         Variant("robust, relinearize x3", "robust", _term(3),
                 note="up to 3 solves per replan, re-linearized about each plan"),
@@ -127,6 +135,14 @@ QUESTIONS: dict[str, tuple[str, str, tuple[int, ...], tuple[Variant, ...]]] = {
         Variant("robust, lambda 0.98", "robust", _parametric(forgetting_factor=0.98),
                 note="forgetting factor 0.98 (halves a sample's weight in 34 steps)"),
         Variant("paper", "paper"),
+        # the Fourier part's share: the parametric part (dp' S) with one frequency beside it
+        Variant("robust, r=1", "robust", _parametric(n_frequencies=1),
+                note="the parametric part with a single Fourier frequency"),
+        # data where the swing-up goes (diagnostic) and data that excite more (exploration)
+        Variant("robust + a swing-up's data", "robust", data="own+swing",
+                note="initial data plus the oracle's swing-up from another start"),
+        Variant("robust, random-force data", "robust", data="random",
+                note="PILCO's first trial: uniform random forces instead of the tracker"),
     )),
 }
 """question -> (env, scenario, initial samples, variants)."""
@@ -136,13 +152,24 @@ def episode(env_name: str, scenario: str, variant: Variant, seed: int, n_init: i
             ) -> dict[str, Any]:
     """One episode of ``variant`` (module docstring); its metrics."""
     from benchmarks.controllers import make_env
-    from gp_agents import collect_initial_data, make_mpc, rollout
+    from gp_agents import make_mpc, rollout
 
     env = make_env(env_name, scenario)
-    learning = variant.recipe not in ("nominal", "oracle")
-    data = collect_initial_data(env, n_init, seed=seed) if learning and n_init else None
+    learning = variant.recipe not in ("nominal", "oracle") and not variant.recipe.startswith(
+        "oracle-off-")
+    data = _data(env, variant.data, n_init, seed) if learning and n_init else None
     env.reset(seed=seed)
-    agent = make_mpc(env, variant.recipe, **variant.overrides())
+    if variant.recipe.startswith("oracle-off-"):  # the true model, its parameters off by e
+        import gp_envs
+        from gp_agents import PseudospectralMPC
+
+        e = float(variant.recipe.rsplit("-", 1)[1]) / 100
+        truth = gp_envs.oracle_model(env)
+        wrong = truth.with_params(**{k: v * (1 + e) for k, v in truth.params.items()
+                                     if k != "g"})
+        agent = PseudospectralMPC.from_env(env, model_source=lambda: wrong)
+    else:
+        agent = make_mpc(env, variant.recipe, **variant.overrides())
     if learning:
         agent.pretrain(data)
     start = time.perf_counter()
@@ -184,10 +211,8 @@ class _Probe:
         agent = self.agent
         learner = getattr(agent, "learner", None)
         fitted = learner is not None and hasattr(learner, "n_samples_seen_")
-        if learner is None or not fitted:
-            true = agent.model.step(obs, action) if agent.model is not None else None
-            err = float(np.linalg.norm(np.asarray(true) - next_obs)) if true is not None else 0.0
-            self.rows.append((err, err, True))
+        if learner is None or not fitted:  # no learned residual: no error to compare
+            self.rows.append((float("nan"), float("nan"), True))
         else:
             z, y = agent.residual.targets(obs[None], np.asarray(action, float)[None],
                                           next_obs[None])
@@ -207,6 +232,46 @@ class _Probe:
         return {"err_learned_swing": m(learned[:k]), "err_zero_swing": m(zero[:k]),
                 "err_learned_hold": m(learned[k:]), "err_zero_hold": m(zero[k:]),
                 "residual_off_steps": int(np.sum(~on.astype(bool)))}
+
+
+def _data(env: Any, kind: str, n: int, seed: int) -> Any:
+    """The initial data of :attr:`Variant.data`."""
+    from gp_agents import Transitions, collect_initial_data, make_mpc, rollout
+
+    if kind == "own":
+        return collect_initial_data(env, n, seed=seed)
+    if kind == "random":
+        class Random:
+            def __init__(self) -> None:
+                self.rng = np.random.default_rng([seed, 7])
+
+            def reset(self) -> None:
+                pass
+
+            def act(self, obs: np.ndarray) -> np.ndarray:
+                space = env.action_space
+                return self.rng.uniform(space.low, space.high).astype(np.float32)
+
+            def observe(self, *args: Any) -> None:
+                pass
+
+        X, U, Xn = [], [], []
+        k = 0
+        while sum(len(x) for x in X) < n:
+            run = rollout(env, Random(), seed * 1000 + k, max_steps=n - sum(len(x) for x in X))
+            X.append(run.observations[:-1])
+            U.append(run.actions)
+            Xn.append(run.observations[1:])
+            k += 1
+        return Transitions(np.concatenate(X), np.concatenate(U), np.concatenate(Xn))
+    if kind == "own+swing":
+        base = collect_initial_data(env, n, seed=seed)
+        oracle = make_mpc(env, "oracle")
+        run = rollout(env, oracle, seed + 1000)
+        return Transitions(np.concatenate([base.X, run.observations[:-1]]),
+                           np.concatenate([base.U, run.actions]),
+                           np.concatenate([base.X_next, run.observations[1:]]))
+    raise ValueError(f"unknown data kind {kind!r}")
 
 
 def _first_at_goal(infos: list[dict[str, Any]]) -> float:
@@ -234,14 +299,14 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--question", choices=list(QUESTIONS), required=True)
     p.add_argument("--seeds", type=parse_seeds, default=list(TUNING_SEEDS[:10]))
     p.add_argument("--n-init", type=int, nargs="*", help="override the question's sample counts")
-    p.add_argument("--variants", help="comma-separated subset of the variants")
+    p.add_argument("--variants", help="semicolon-separated subset of the variants")
     p.add_argument("--out", type=Path, default=Path("benchmarks/results/data-efficiency-study"))
     args = p.parse_args(argv)
     if set(args.seeds) - set(TUNING_SEEDS):
         p.error(f"tune on the tuning seeds {TUNING_SEEDS[0]}-{TUNING_SEEDS[-1]} only")
     env_name, scenario, n_inits, variants = QUESTIONS[args.question]
     if args.variants:
-        keep = args.variants.split(",")
+        keep = args.variants.split(";")
         variants = tuple(v for v in variants if v.name in keep)
     n_inits = tuple(args.n_init) if args.n_init else n_inits
     args.out.mkdir(parents=True, exist_ok=True)
