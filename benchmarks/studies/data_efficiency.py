@@ -228,7 +228,7 @@ class _Probe:
             return {}
         learned, zero, on = (np.array(c) for c in zip(*self.rows, strict=True))
         def m(a: np.ndarray) -> float:
-            return float(a.mean()) if a.size else float("nan")
+            return float(np.nanmean(a)) if np.isfinite(a).any() else float("nan")
         return {"err_learned_swing": m(learned[:k]), "err_zero_swing": m(zero[:k]),
                 "err_learned_hold": m(learned[k:]), "err_zero_hold": m(zero[k:]),
                 "residual_off_steps": int(np.sum(~on.astype(bool)))}
