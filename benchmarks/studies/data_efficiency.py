@@ -9,6 +9,8 @@ table per question. Not imported by the engine or the library::
     python -m benchmarks.studies.data_efficiency --question blackbox --seeds 0-3
     python -m benchmarks.studies.data_efficiency --question refit --seeds 0-9
     python -m benchmarks.studies.data_efficiency --question transient --seeds 0-9
+    python -m benchmarks.studies.data_efficiency --question transient --evaluate \
+        --seeds 500-519 --variants "oracle;robust;robust, lambda 0.98;paper"
 
 Each episode is as the preset runs it (``--data own``): ``collect_initial_data(env, n,
 seed=s)`` on the system ``env.reset(seed=s)`` gives, then ``make_mpc(env, recipe,
@@ -30,6 +32,8 @@ import numpy as np
 
 TUNING_SEEDS = tuple(range(20))
 """Seeds the choices here were made on (the evaluation seeds are 500-519)."""
+EVALUATION_SEEDS = tuple(range(500, 520))
+"""Seeds the chosen variants are reported on (``--evaluate``; never used to choose)."""
 
 
 @dataclass(frozen=True)
@@ -301,16 +305,20 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--n-init", type=int, nargs="*", help="override the question's sample counts")
     p.add_argument("--variants", help="semicolon-separated subset of the variants")
     p.add_argument("--out", type=Path, default=Path("benchmarks/results/data-efficiency-study"))
+    p.add_argument("--evaluate", action="store_true", help="report on the evaluation seeds "
+                   f"{EVALUATION_SEEDS[0]}-{EVALUATION_SEEDS[-1]} (stored apart)")
     args = p.parse_args(argv)
-    if set(args.seeds) - set(TUNING_SEEDS):
-        p.error(f"tune on the tuning seeds {TUNING_SEEDS[0]}-{TUNING_SEEDS[-1]} only")
+    allowed = EVALUATION_SEEDS if args.evaluate else TUNING_SEEDS
+    if set(args.seeds) - set(allowed):
+        p.error(f"seeds must be within {allowed[0]}-{allowed[-1]}"
+                + ("" if args.evaluate else " (tuning seeds; --evaluate for the others)"))
     env_name, scenario, n_inits, variants = QUESTIONS[args.question]
     if args.variants:
         keep = args.variants.split(";")
         variants = tuple(v for v in variants if v.name in keep)
     n_inits = tuple(args.n_init) if args.n_init else n_inits
     args.out.mkdir(parents=True, exist_ok=True)
-    store = args.out / f"{args.question}.jsonl"
+    store = args.out / f"{args.question}{'-evaluation' if args.evaluate else ''}.jsonl"
     done = {}
     if store.exists():
         for line in store.read_text().splitlines():
