@@ -62,7 +62,7 @@ from benchmarks.runner import (
     run_trials,
     trial_path,
 )
-from benchmarks.trial import DATA_SOURCES, STARTS, Cell, TrialSpec
+from benchmarks.trial import DATA_SOURCES, EPISODE_KINDS, STARTS, Cell, TrialSpec
 
 RESULTS_DIR = Path("benchmark-results")
 """Default parent of the results directories, relative to the current directory
@@ -190,9 +190,9 @@ def build_parser() -> _Parser:
                       "noise standard deviation, in each state's unit (default 0)")
     grid.add_argument("--start", choices=STARTS, help="default (the env's reset) or perturbed "
                       "(a seeded offset within the system's perturbation widths)")
-    grid.add_argument("--n-init", type=_number(int, 1, "an integer >= 1"),
+    grid.add_argument("--n-init", type=_number(int, 0, "an integer >= 0"),
                       help=f"initial samples of the learning recipes (default "
-                      f"{N_INITIAL_POINTS})")
+                      f"{N_INITIAL_POINTS}; 0: none, learned from the episode's first step)")
     p.add_argument("--max-steps", type=_number(int, 1, "an integer >= 1"),
                    help="stop every episode after this many steps (smoke runs; stored as "
                    "different trials)")
@@ -239,14 +239,14 @@ def _filter(preset: Preset, controllers: list[str] | None, envs: list[str] | Non
             check_name("cell", c, known)
 
     def keep(s: TrialSpec) -> bool:
-        return ((controllers is None or s.kind != "episode" or s.controller in controllers)
+        return ((controllers is None or s.kind not in EPISODE_KINDS or s.controller in controllers)
                 and (envs is None or s.env in envs)
                 and (scenarios is None or s.scenario in scenarios)
                 and (seeds is None or s.seed in seeds)
                 and (cells is None or (s.cell.key or DEFAULT_CELL) in cells))
 
     def change(s: TrialSpec) -> TrialSpec:
-        return s if max_steps is None or s.kind not in ("episode", "ssgp-act-scaling") else (
+        return s if max_steps is None or s.kind not in (*EPISODE_KINDS, "ssgp-act-scaling") else (
             dataclasses.replace(s, max_steps=max_steps))
 
     experiments = tuple(dataclasses.replace(e, specs=tuple(change(s) for s in e.specs if keep(s)))
@@ -317,7 +317,7 @@ def _with_models(preset: Preset, models: Path) -> Preset:
     """``preset`` whose RL episodes look for their models in ``models`` first (the spec carries
     the directory to the worker processes; the trial keys stay)."""
     def change(s: TrialSpec) -> TrialSpec:
-        rl = s.kind == "episode" and CONTROLLERS[s.controller].family == "rl"
+        rl = s.kind in EPISODE_KINDS and CONTROLLERS[s.controller].family == "rl"
         return dataclasses.replace(s, models=str(models)) if rl else s
 
     return dataclasses.replace(preset, experiments=tuple(

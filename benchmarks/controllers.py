@@ -141,8 +141,9 @@ def controller_name(recipe: str, scheme: str = "converged") -> str:
 
 
 _RECIPE_LEARNERS = {"robust": "ssgp-parametric", "paper": "ssgp", "nominal": None,
-                    "oracle": None}
-_RECIPE_LABELS = {"robust": "robust", "paper": "paper", "nominal": "nominal", "oracle": "oracle"}
+                    "oracle": None, "blackbox": "ssgp-blackbox"}
+_RECIPE_LABELS = {"robust": "robust", "paper": "paper", "nominal": "nominal", "oracle": "oracle",
+                  "blackbox": "black-box"}
 _SCHEME_LABELS = {"converged": "", "rti": ", RTI", "rti-split": ", RTI split"}
 
 
@@ -355,12 +356,14 @@ class BuiltController:
         prior_data_steps: env steps of data used before the episode (initial data, or RL
             training steps).
         info: recipe details for the record (e.g. the RL model's path and training steps).
+        data: the initial transitions the learner was pretrained on (None: none).
     """
 
     agent: Any
     obs: Any
     prior_data_steps: int
     info: dict[str, Any]
+    data: Any = None
 
 
 def user_models_dir(models: str | Path | None = None) -> Path | None:
@@ -417,7 +420,7 @@ def make_learner(kind: str, parametric_columns: tuple[int, ...] = ()) -> Any:
     the input saturation :data:`~gp_agents.learners.INPUT_SATURATION`) or
     ``"ssgp-parametric"`` (:func:`gp_agents.parametric_ssgp`: the saturated one with linear
     features on the parameter sensitivities only, ``parametric_columns`` or, if empty, those
-    of the MPC it is given to)."""
+    of the MPC it is given to) or ``"ssgp-blackbox"`` (the black-box recipe's)."""
     from gp_agents import online_ssgp, parametric_ssgp
     from gp_agents.learners import INPUT_SATURATION, ChangeDetector, ExactGP, NominalFallback
 
@@ -437,6 +440,10 @@ def make_learner(kind: str, parametric_columns: tuple[int, ...] = ()) -> Any:
                            nominal_fallback=NominalFallback(), input_saturation=INPUT_SATURATION)
     if kind == "ssgp-parametric":
         return parametric_ssgp(parametric_columns or None)
+    if kind == "ssgp-blackbox":
+        from gp_agents.mpc.recipes import BLACKBOX_LINEAR_FEATURES
+
+        return online_ssgp(linear_features=BLACKBOX_LINEAR_FEATURES)
     raise ValueError(f"unknown learner kind {kind!r}")
 
 
@@ -457,7 +464,8 @@ def build_controller(name: str, env: gym.Env, env_name: str, seed: int,
         env: a ``gym.make``-made benchmark env.
         env_name: its short name (key of :data:`ENVS`), for the RL model path.
         seed: the trial's seed.
-        n_init: initial transitions for the learning recipes.
+        n_init: initial transitions for the learning recipes; 0: none, the learner is fitted
+            on the episode's first transitions (``agent.pretrain(None)``).
         data_env: the env the initial data are collected on (default ``env``).
         settings: constructor settings of :class:`gp_agents.PseudospectralMPC` that replace
             the recipe's (MPC recipes only).
@@ -483,7 +491,7 @@ def build_controller(name: str, env: gym.Env, env_name: str, seed: int,
     if learner is not None and recipe.learner is None:
         raise ValueError(f"controller {name!r} learns nothing: it takes no learner")
     data = None
-    if recipe.learner is not None:
+    if recipe.learner is not None and n_init > 0:
         data = collect_initial_data(data_env or env, n_init, seed=seed, same_system=same_system)
     obs, _ = env.reset(seed=seed, options=options)
     overrides = dict(settings or {})
@@ -498,11 +506,11 @@ def build_controller(name: str, env: gym.Env, env_name: str, seed: int,
         agent = PseudospectralMPC.from_env(
             env, own.pop("learner", None),
             model_source=OracleModel(env) if recipe.oracle else None, **own)
-    if data is not None:
-        agent.pretrain(data)
+    if recipe.learner is not None:
+        agent.pretrain(data)  # None (n_init 0): learned from the episode's first step
     agent.reset()
     return BuiltController(agent, obs, len(data) if data is not None else 0,
-                           {"horizon_s": agent.horizon, "mesh": agent.mesh.describe()})
+                           {"horizon_s": agent.horizon, "mesh": agent.mesh.describe()}, data)
 
 
 def _build_rl(recipe: ControllerRecipe, env: gym.Env, env_name: str, seed: int,

@@ -479,6 +479,48 @@ def recommended(seeds: Sequence[int] = RECOMMENDED_SEEDS,
         specs, ("summary", "trajectories", "paths"))
 
 
+DATA_EFFICIENCY_SEEDS = tuple(range(500, 510))
+"""Evaluation seeds of the data-efficiency preset (issue 44): used by no other preset and for no
+tuning (its study, ``benchmarks/studies/data_efficiency.py``, tuned on seeds 0-19)."""
+DATA_EFFICIENCY_N_INIT = (0, 5, 10, 20, 50, 100, 200)
+"""Initial samples of the learning recipes (0: learned from the first step, planning with the
+model alone until the first transition: ``agent.pretrain(None)``)."""
+DATA_EFFICIENCY_LEARNERS = ("robust-mpc", "paper-mpc", "blackbox-mpc")
+"""The learning recipes of the data-efficiency preset (nominal and oracle are its references)."""
+DATA_EFFICIENCY_ENVS = (("pilco_cartpole", "pilco"), ("cartpole", "online"),
+                        ("pendulum", "damped"), ("quadrotor", "online"), ("dubins", "paper"))
+"""Its (env, scenario) pairs, in the order they run (PILCO's cart pole and the cart pole
+first)."""
+
+
+def data_efficiency(seeds: Sequence[int] = DATA_EFFICIENCY_SEEDS,
+                    n_inits: Sequence[int] = DATA_EFFICIENCY_N_INIT,
+                    envs: Sequence[tuple[str, str]] = DATA_EFFICIENCY_ENVS) -> Experiment:
+    """Success, cost and interaction time before success against the data used, with a
+    multi-trial protocol (``kind="trials"``, :func:`benchmarks.trial.run_trials`)."""
+    cell = Cell(data="own")
+    specs: list[TrialSpec] = []
+    for env, scenario in envs:
+        specs += [TrialSpec("trials", env, scenario, c, s, n_init=0, cell=cell)
+                  for c in ("nominal-mpc", "oracle-mpc") for s in seeds]
+        specs += [TrialSpec("trials", env, scenario, c, s, n_init=n, cell=cell)
+                  for n in n_inits for c in DATA_EFFICIENCY_LEARNERS for s in seeds]
+    return Experiment(
+        "data-efficiency", "Data efficiency: success against the data used",
+        "Nominal, paper (online SSGP in the NLP), robust (parametric SSGP, linearized), "
+        "black-box (no physics prior: kinematics only, the SSGP learns every acceleration) and "
+        "oracle MPC, the learners with 0, 5, 10, 20, 50, 100 and 200 initial samples "
+        "collected as a user does (`collect_initial_data(env, n, seed=s)`: PILCO's cart pole "
+        "applies uniform random forces, as PILCO's first random trial; the other systems their "
+        "crude tracking controller), on evaluation seeds "
+        f"{seeds[0]}-{seeds[-1]}. *Interaction time before success*: the initial data's time "
+        "plus the time at which the final stretch held at the goal began "
+        "(`info['at_goal_since']` at the episode's end). Multi-trial protocol (GP-MPC's): a "
+        "learning recipe that has not succeeded runs another trial, up to 5, on the same "
+        "system from a new start, its agent pretrained on every transition so far.",
+        tuple(specs), ("data_efficiency", "summary"))
+
+
 PRESETS: dict[str, Preset] = {
     "quick": Preset("quick", "a couple of minutes: the main controllers on every env",
                     (quick(),)),
@@ -504,6 +546,9 @@ PRESETS: dict[str, Preset] = {
                          "time-varying systems (long; not part of full)", (robustness(),)),
     "rti": Preset("rti", "real-time iteration vs converged MPC, with the peers comparison "
                   "(not part of full)", (rti(), peers())),
+    "data-efficiency": Preset("data-efficiency", "success and interaction time against the "
+                              "data used, with PILCO's and GP-MPC's published figures (long; "
+                              "not part of full)", (data_efficiency(),)),
     "full": Preset("full", "everything: all experiments above except quick",
                    (paper_tables(), dubins(), sample_efficiency(), compute(), peers(),
                     mpc_acceptance())),

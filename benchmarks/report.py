@@ -47,7 +47,7 @@ from benchmarks.controllers import CONTROLLERS, ENVS, MODELS_DIR, RL_ALGORITHMS,
 from benchmarks.presets import MPC_BASES, Experiment, Preset
 from benchmarks.runner import load_arrays, load_record, trial_path
 from benchmarks.styles import EPISODIC, RTI, WARM_DUALS, Style, axis_label, style
-from benchmarks.trial import STATUS_OK, STATUS_UNAVAILABLE, Cell, TrialSpec
+from benchmarks.trial import EPISODE_KINDS, STATUS_OK, STATUS_UNAVAILABLE, Cell, TrialSpec
 from gp_agents.mpc.diagnostics import DEGRADED_FRACTION
 
 METRIC_COLUMNS = (
@@ -57,7 +57,9 @@ METRIC_COLUMNS = (
     "act_median_ms", "act_p95_ms", "act_max_ms", "solver_failures", "fallbacks", "solves",
     "capped_solves", "learner_changes", "rti_steps", "rti_recovered", "rti_recovery_iterations",
     "rti_rejected", "degraded", "plan_plant_defect",
-    "build_s", "episode_s", "max_steps", "message",
+    "build_s", "episode_s", "max_steps", "message", "n_init", "initial_data_steps",
+    "at_goal_since_s", "interaction_s", "trials", "trials_to_success", "interaction_trials_s",
+    "trial_successes", "trial_costs", "data_steps_trials",
 )
 TIME_COLUMNS = ("act_median_ms", "act_p95_ms", "act_max_ms", "build_s", "episode_s")
 """The columns of ``metrics.csv`` that are wall-clock times: the only ones a run's machine load
@@ -75,6 +77,10 @@ SUMMARY_COLUMNS = (
     "solve_median_ms", "outside_median_ms", "latency_median_ms", "preparation_median_ms",
     "accepted_latency_median_ms", "rti_steps", "rti_recovered", "rti_rejected",
     "rti_rejected_fraction",
+    "interaction_mean_s", "interaction_ci_low", "interaction_ci_high",
+    "trials_success_rate", "trials_success_ci_low", "trials_success_ci_high",
+    "trials_to_success_mean", "interaction_trials_mean_s", "interaction_trials_ci_low",
+    "interaction_trials_ci_high",
 )
 PACKAGES = ("gp-pseudospectral-mpc", "numpy", "scipy", "casadi", "gymnasium", "matplotlib",
             "torch", "stable-baselines3", "do-mpc", "dask", "distributed", "tqdm")
@@ -289,11 +295,12 @@ def metric_rows(trials: Iterable[Trial]) -> list[dict[str, Any]]:
     """One row per episode trial (tidy metrics; failed/unavailable trials with status only)."""
     rows = []
     for t in trials:
-        if t.spec.kind != "episode" or t.record is None:
+        if t.spec.kind not in EPISODE_KINDS or t.record is None:
             continue
         recipe = CONTROLLERS[t.spec.controller]
         row: dict[str, Any] = {
             "key": t.spec.key, "env": t.spec.env, "scenario": t.spec.scenario,
+            "n_init": t.spec.n_init,
             "cell": t.spec.cell.describe(), "controller": t.spec.controller,
             "family": recipe.family,
             "mode": recipe.mode if recipe.family == "mpc" else "policy", "seed": t.spec.seed,
@@ -313,7 +320,7 @@ def summarize(experiment: str, trials: Sequence[Trial]) -> list[dict[str, Any]]:
     experiment."""
     groups: dict[tuple[str, str, Cell, int, str], list[Trial]] = defaultdict(list)
     for t in trials:
-        if t.spec.kind == "episode":
+        if t.spec.kind in EPISODE_KINDS:
             groups[(t.spec.env, t.spec.scenario, t.spec.cell, t.spec.n_init,
                     t.spec.controller)].append(t)
     rows = []
@@ -355,6 +362,11 @@ def summarize(experiment: str, trials: Sequence[Trial]) -> list[dict[str, Any]]:
         n_success = int(sum(bool(x["success"]) for x in m))
         success_ci = wilson_ci(n_success, len(m))
         cost_ci = mean_ci(costs)
+        interaction = [x.get("interaction_s", math.nan) for x in m]
+        multi = [x for x in m if "trials" in x]
+        n_trials_success = int(sum(np.isfinite(x["trials_to_success"]) for x in multi))
+        trials_ci = wilson_ci(n_trials_success, len(multi))
+        interaction_trials = [x["interaction_trials_s"] for x in multi]
         rows.append({
             "experiment": experiment, "env": env, "scenario": scenario,
             "cell": cell.describe(), "n_init": n_init, "controller": controller,
@@ -369,6 +381,16 @@ def summarize(experiment: str, trials: Sequence[Trial]) -> list[dict[str, Any]]:
             "cost_mean": _mean(costs), "cost_std": float(costs.std()) if costs.size else math.nan,
             "cost_median": float(np.median(costs)) if costs.size else math.nan,
             "time_to_success_mean_s": _mean([x["time_to_success_s"] for x in m]),
+            # over the episodes that succeeded (NaN for the others)
+            "interaction_mean_s": _mean(interaction),
+            "interaction_ci_low": mean_ci(interaction)[0],
+            "interaction_ci_high": mean_ci(interaction)[1],
+            "trials_success_rate": (n_trials_success / len(multi)) if multi else math.nan,
+            "trials_success_ci_low": trials_ci[0], "trials_success_ci_high": trials_ci[1],
+            "trials_to_success_mean": _mean([x["trials_to_success"] for x in multi]),
+            "interaction_trials_mean_s": _mean(interaction_trials),
+            "interaction_trials_ci_low": mean_ci(interaction_trials)[0],
+            "interaction_trials_ci_high": mean_ci(interaction_trials)[1],
             "final_distance_mean": _mean([x["final_distance"] for x in m]),
             "final_position_error_mean": _mean([x["final_position_error"] for x in m]),
             "final_position_error_max": _max_finite(x["final_position_error"] for x in m),
@@ -603,7 +625,7 @@ def section_trajectories(ctx: Context, exp: Experiment) -> list[str]:
     """States and controls vs time, one line per controller, lowest seed; one figure per env."""
     by_env: dict[tuple[str, str], dict[str, list[Trial]]] = defaultdict(lambda: defaultdict(list))
     for t in ctx.of(exp):
-        if t.spec.kind == "episode":
+        if t.spec.kind in EPISODE_KINDS:
             by_env[(t.spec.env, t.spec.scenario)][t.spec.controller].append(t)
     lines: list[str] = []
     for (env, scenario), controllers in by_env.items():
@@ -678,7 +700,7 @@ def section_paths(ctx: Context, exp: Experiment) -> list[str]:
     the goal, one panel per controller; one figure per env and scenario."""
     by_env: dict[tuple[str, str], dict[str, list[Trial]]] = defaultdict(lambda: defaultdict(list))
     for t in ctx.of(exp):
-        if t.spec.kind == "episode" and t.ok and _env_model(t.spec.env,
+        if t.spec.kind in EPISODE_KINDS and t.ok and _env_model(t.spec.env,
                                                             t.spec.scenario).task.obstacles:
             by_env[(t.spec.env, t.spec.scenario)][t.spec.controller].append(t)
     lines: list[str] = []
@@ -742,7 +764,7 @@ def section_step_times(ctx: Context, exp: Experiment) -> list[str]:
     groups: dict[str, dict[str, list[np.ndarray]]] = defaultdict(lambda: defaultdict(list))
     scenarios: dict[str, str] = {}
     for t in ctx.of(exp):
-        if t.spec.kind == "episode" and t.ok:
+        if t.spec.kind in EPISODE_KINDS and t.ok:
             groups[t.spec.env][t.spec.controller].append(t.arrays["act_time"])
             scenarios.setdefault(t.spec.env, t.spec.scenario)
     if not groups:
@@ -1069,7 +1091,7 @@ converged one's, measured in the same run."""
 def section_acceptance(ctx: Context, exp: Experiment) -> list[str]:
     """Headline numbers of the MPC issue's acceptance runs, for every MPC recipe in them."""
     by = {(r["env"], r["scenario"], r["controller"]): r for r in ctx.summaries[exp.name]}
-    order = list(dict.fromkeys(s.controller for s in exp.specs if s.kind == "episode"))
+    order = list(dict.fromkeys(s.controller for s in exp.specs if s.kind in EPISODE_KINDS))
     lines = [""]
 
     def get(env: str, scenario: str, c: str) -> dict[str, Any] | None:
@@ -1078,7 +1100,7 @@ def section_acceptance(ctx: Context, exp: Experiment) -> list[str]:
 
     rejected: dict[tuple[str, str, str], list[int]] = defaultdict(lambda: [0, 0])
     for t in ctx.of(exp):  # the RTI safety net's rejections, from the per-step statuses
-        if t.spec.kind == "episode" and t.ok and "diag_status" in t.arrays:
+        if t.spec.kind in EPISODE_KINDS and t.ok and "diag_status" in t.arrays:
             status = [str(v) for v in t.arrays["diag_status"]]
             count = rejected[(t.spec.env, t.spec.scenario, t.spec.controller)]
             count[0] += sum(v.startswith("RTI rejected") for v in status)
@@ -1179,7 +1201,8 @@ def _linearization_errors(ctx: Context, exp: Experiment) -> list[str]:
     """How far the linearized recipes' per-node expansions were off at their plans."""
     groups: dict[tuple[str, str, str], list[np.ndarray]] = defaultdict(list)
     for t in ctx.of(exp):
-        if t.spec.kind != "episode" or not t.ok or "diag_linearization_error" not in t.arrays:
+        if (t.spec.kind not in EPISODE_KINDS or not t.ok
+                or "diag_linearization_error" not in t.arrays):
             continue
         recipe = CONTROLLERS.get(t.spec.controller)
         if recipe is None or learned_term(recipe, t.spec.env) not in (
@@ -1254,6 +1277,155 @@ def section_robustness(ctx: Context, exp: Experiment) -> list[str]:
     return lines
 
 
+@dataclass(frozen=True)
+class PublishedAnchor:
+    """A published data-efficiency figure on PILCO's cart pole, cited with its setup.
+
+    Attributes:
+        method: who. success: the reported success rate (NaN: not reported as a rate).
+        trials: trials until that success, counting the first random one.
+        interaction_s: interaction time until then, s, as the source counts it.
+        source: the citation. setup: how its setup differs from this package's.
+    """
+
+    method: str
+    success: float
+    trials: int
+    interaction_s: float
+    source: str
+    setup: str
+
+
+PUBLISHED_ANCHORS: dict[str, tuple[PublishedAnchor, ...]] = {
+    "pilco_cartpole": (
+        PublishedAnchor(
+            "GP-MPC", 0.9, 3, 9.0, "Kamthe & Deisenroth, AISTATS 2018 (as quoted in issue 44)",
+            "no physics prior; GP with moment-matching uncertainty propagation in the plan; "
+            "every transition added at once, replanned every step; whole trials counted "
+            "(9 s over 3 trials suggests 3 s trials; here trials are 4 s, PILCO's MATLAB "
+            "code); success = tip within 8 cm for 10 consecutive steps, as here"),
+        PublishedAnchor(
+            "PILCO (in GP-MPC's comparison)", float("nan"), 5, 15.0,
+            "Kamthe & Deisenroth, AISTATS 2018 (as quoted in issue 44)",
+            "no physics prior; a parametric policy learned between trials (no online "
+            "learning within a trial); whole trials counted"),
+        PublishedAnchor(
+            "PILCO (real cart pole)", float("nan"), 0, 17.5,
+            "Deisenroth & Rasmussen, ICML 2011",
+            "the real hardware, not this simulation; no physics prior; a policy learned "
+            "between trials; whole trials counted (trials count not given here)"),
+    ),
+}
+"""The published anchors of the data-efficiency section, by system."""
+
+
+def _seconds(n: int, dt: float) -> str:
+    return f"{n} ({n * dt:g} s)"
+
+
+def data_efficiency_figure(env: str, rows: Sequence[dict[str, Any]], dt: float) -> Any:
+    """Success rate and mean interaction time before success against the initial samples, per
+    controller (the references as horizontal lines), with the published anchors of ``env``."""
+    fig, (ax_s, ax_t) = plt.subplots(1, 2, figsize=(11, 4))
+    by: dict[str, list[dict[str, Any]]] = defaultdict(list)
+    for r in rows:
+        by[r["controller"]].append(r)
+    for c, group in by.items():
+        st = _style(c)
+        if CONTROLLERS[c].learner is None:
+            r = group[0]
+            ax_s.axhline(r["success_rate"], color=st.color, ls=":", lw=1, label=r["label"])
+            if math.isfinite(r["interaction_mean_s"]):
+                ax_t.axhline(r["interaction_mean_s"], color=st.color, ls=":", lw=1,
+                             label=r["label"])
+            continue
+        group = sorted(group, key=lambda r: r["n_init"])
+        x = [r["n_init"] * dt for r in group]
+        ax_s.plot(x, [r["success_rate"] for r in group], **st.line(len(x), len(x)),
+                  label=f"{group[0]['label']} (trial 1)")
+        ax_s.plot(x, [r["trials_success_rate"] for r in group], color=st.color, ls="--",
+                  lw=0.8, label=f"{group[0]['label']} (within {_max_trials()} trials)")
+        ax_t.plot(x, [r["interaction_trials_mean_s"] for r in group],
+                  **st.line(len(x), len(x)), label=group[0]["label"])
+    for a in PUBLISHED_ANCHORS.get(env, ()):  # whole trials counted: see the table's notes
+        rate = f", {a.success:.0%} success" if math.isfinite(a.success) else ""
+        ax_t.axhline(a.interaction_s, color="0.5", ls="-.", lw=0.8)
+        ax_t.annotate(f"{a.method} (published{rate})", (0, a.interaction_s), fontsize=7,
+                      color="0.3", xytext=(2, 2), textcoords="offset points")
+    ax_s.set_xlabel("initial data (s of interaction)")
+    ax_s.set_ylabel("success rate")
+    ax_s.set_ylim(-0.05, 1.05)
+    ax_t.set_xlabel("initial data (s of interaction)")
+    ax_t.set_ylabel(f"interaction before success, within {_max_trials()} trials (s)")
+    ax_s.legend(fontsize=6)
+    ax_t.legend(fontsize=6)
+    fig.suptitle(f"{env}: data efficiency")
+    fig.tight_layout()
+    return fig
+
+
+def _max_trials() -> int:
+    from benchmarks.trial import MAX_TRIALS
+
+    return MAX_TRIALS
+
+
+def section_data_efficiency(ctx: Context, exp: Experiment) -> list[str]:
+    """Per env: success, cost and interaction time before success against the initial
+    samples, the multi-trial protocol's trials to success, and the published anchors."""
+    by: dict[tuple[str, str], list[dict[str, Any]]] = defaultdict(list)
+    for r in ctx.summaries[exp.name]:
+        by[(r["env"], r["scenario"])].append(r)
+    k = _max_trials()
+    lines = ["", "*success*: the first trial ends held at the goal (`info['success']`); "
+             "*interaction before success*: initial data plus `info['at_goal_since']` at the "
+             "end of that trial, mean over the seeds that succeeded [BCa 95% interval]; "
+             f"*within {k} trials*: GP-MPC's protocol (a learning recipe that failed runs "
+             "another trial on the same system from a new start, pretrained on every "
+             "transition so far), its success rate, mean trials and interaction time "
+             "(initial data, the failed trials' whole length, and the successful trial's "
+             "`at_goal_since`). Success rates with Wilson 95% intervals, costs with BCa "
+             "intervals over seeds."]
+    header = ["controller", "initial samples (time)", "episodes", "success [95% CI]",
+              "cost [95% CI]", "interaction before success, s [95% CI] (n)",
+              f"success within {k} trials", "trials to success", "interaction incl. trials, s"]
+    for (env, scenario), rows in by.items():
+        dt = float(_env_model(env, scenario).dt)
+        rows = sorted(rows, key=lambda r: (CONTROLLERS[r["controller"]].learner is not None,
+                                           r["controller"], r["n_init"]))
+        body = []
+        for r in rows:
+            learning = CONTROLLERS[r["controller"]].learner is not None
+            n_ok = round(r["success_rate"] * r["episodes"]) if r["episodes"] else 0
+            body.append([
+                r["label"], _seconds(r["n_init"], dt) if learning else "-", r["episodes"],
+                f"{_fmt(r['success_rate'])} {_interval(r['success_ci_low'], r['success_ci_high'])}",
+                f"{_fmt(r['cost_mean'])} {_interval(r['cost_ci_low'], r['cost_ci_high'])}",
+                f"{_fmt(r['interaction_mean_s'])} "
+                f"{_interval(r['interaction_ci_low'], r['interaction_ci_high'])} ({n_ok})",
+                (f"{_fmt(r['trials_success_rate'])} "
+                 f"{_interval(r['trials_success_ci_low'], r['trials_success_ci_high'])}"
+                 if learning else "-"),
+                _fmt(r["trials_to_success_mean"]) if learning else "-",
+                (f"{_fmt(r['interaction_trials_mean_s'])} "
+                 f"{_interval(r['interaction_trials_ci_low'], r['interaction_trials_ci_high'])}"
+                 if learning else "-")])
+        for a in PUBLISHED_ANCHORS.get(env, ()):
+            body.append([f"{a.method} (published)", "-", "-",
+                         _fmt(a.success) if math.isfinite(a.success) else "-", "-", "-",
+                         "-", str(a.trials) if a.trials else "-", f"{a.interaction_s:g}"])
+        name = _save(data_efficiency_figure(env, [r for r in rows if r["episodes"]], dt),
+                     ctx.out_dir, f"{exp.name}_{env}.png")
+        lines += ["", f"### {_env_title(env, scenario)}", "", f"![data efficiency]({name})", ""]
+        lines += markdown_table(header, body, ["---", "---:"] + ["---:"] * (len(header) - 2))
+        anchors = PUBLISHED_ANCHORS.get(env, ())
+        if anchors:
+            lines += ["", "Published figures (cited, not measured here) and how their setup "
+                      "differs:", ""]
+            lines += [f"- **{a.method}** ({a.source}): {a.setup}." for a in anchors]
+    return lines
+
+
 def _time_varying(row: dict[str, Any]) -> bool:
     """Whether a summary row is of a time-varying scenario (it has recovery times to show)."""
     return bool(_env_model_changes(row["env"], row["scenario"]))
@@ -1268,6 +1440,7 @@ def _env_model_changes(env: str, scenario: str) -> tuple[Any, ...]:
 
 SECTIONS: dict[str, SectionFn] = {
     "summary": section_summary,
+    "data_efficiency": section_data_efficiency,
     "paper_tables": section_paper_tables,
     "trajectories": section_trajectories,
     "paths": section_paths,
@@ -1314,7 +1487,7 @@ def _record_counts(trials: Iterable[Any], key: str) -> str:
 
 
 def _capped(trials: Iterable[Any]) -> str:
-    capped = [int(c) for t in trials if t.ok and t.spec.kind == "episode"
+    capped = [int(c) for t in trials if t.ok and t.spec.kind in EPISODE_KINDS
               for c in [t.metrics.get("capped_solves", math.nan)]
               if isinstance(c, int | float) and math.isfinite(c)]
     return (f"{sum(capped)} in {sum(c > 0 for c in capped)} of {len(capped)} MPC episode(s)"

@@ -84,6 +84,7 @@ _SSGP_LINEARIZED_PARAMETRIC = "#AEC7E8"  # light blue
 _SAC = "#9467BD"  # purple
 _PPO = "#BCBD22"  # olive
 _TQC = "#E377C2"  # pink
+_BLACKBOX = "#8C6D31"  # dark olive brown: the no-prior model
 
 STYLES: dict[str, Style] = {
     # nominal: thick and underneath; oracle: thin and on top (the two often coincide)
@@ -126,6 +127,9 @@ STYLES: dict[str, Style] = {
     # the RTI linearized on every system (ssgp-mpc-rti: the system's registered term)
     "ssgp-mpc-rti-linearized": Style(_SSGP_LINEARIZED, RTI, "$r$"),
     "ssgp-mpc-rti-linearized-split": Style(_SSGP_LINEARIZED, RTI, "$R$"),
+    "blackbox-mpc": Style(_BLACKBOX, RECEDING, "$b$"),
+    "blackbox-mpc@rti": Style(_BLACKBOX, RTI, "$B$"),
+    "blackbox-mpc@rti-split": Style(_BLACKBOX, RTI, "$S$"),
     "sac": Style(_SAC, RECEDING, "*"),
     "ppo": Style(_PPO, RECEDING, "X"),
     "tqc": Style(_TQC, RECEDING, "$T$"),

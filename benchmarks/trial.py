@@ -43,6 +43,9 @@ from gp_envs.systems import get_system
 DISTRIBUTION = "gp-pseudospectral-mpc"
 """The distribution (``pip install`` name) of this package, for :func:`code_version`."""
 
+EPISODE_KINDS = ("episode", "trials")
+"""Trial kinds that run closed-loop episodes (``"trials"``: several, :func:`run_trials`)."""
+
 STATUS_OK = "ok"
 STATUS_ERROR = "error"
 STATUS_UNAVAILABLE = "unavailable"
@@ -179,7 +182,7 @@ class TrialSpec:
         """Raise :class:`benchmarks.controllers.UnknownNameError` for unknown names."""
         check_name("trial kind", self.kind, list(JOB_KINDS))
         check_env_scenario(self.env, self.scenario)
-        if self.kind == "episode":
+        if self.kind in EPISODE_KINDS:
             check_name("controller", self.controller, list(CONTROLLERS))
 
     def to_dict(self) -> dict[str, Any]:
@@ -214,16 +217,36 @@ def build_episode(spec: TrialSpec) -> tuple[Any, BuiltController, dict[str, Any]
     return env, built, options
 
 
+def interaction_time(initial_steps: int, dt: float, final_info: dict[str, Any],
+                     earlier_steps: int = 0) -> float:
+    """Interaction time (s) before success: the initial data's ``initial_steps`` and the
+    ``earlier_steps`` of earlier (failed) trials at ``dt`` each, plus the time within the
+    episode at which its final stretch at the goal began (``final_info["at_goal_since"]``,
+    the env's; the episode ended successfully: ``final_info["success"]``); NaN if it did not."""
+    since = final_info.get("at_goal_since")
+    if not final_info.get("success") or since is None:
+        return float("nan")
+    return (int(initial_steps) + int(earlier_steps)) * float(dt) + float(since)
+
+
 def run_episode(spec: TrialSpec) -> dict[str, Any]:
     """Run one closed-loop episode; returns ``{"metrics": ..., "arrays": ...}``.
 
     Raises:
         ControllerUnavailableError: the controller cannot run on this env/scenario.
     """
-    recipe = CONTROLLERS[spec.controller]
     t_build = time.perf_counter()
     env, built, options = build_episode(spec)
     build_s = time.perf_counter() - t_build
+    out = _episode_result(spec, env, built, options, build_s)
+    env.close()
+    return {"metrics": out["metrics"], "arrays": out["arrays"]}
+
+
+def _episode_result(spec: TrialSpec, env: Any, built: BuiltController,
+                    options: dict[str, Any] | None, build_s: float) -> dict[str, Any]:
+    """Run the episode of ``built`` on ``env``: ``{"metrics", "arrays", "episode"}``."""
+    recipe = CONTROLLERS[spec.controller]
     agent = built.agent
     goal = np.asarray(env.unwrapped.nominal_model.task.goal, float)
     t_episode = time.perf_counter()
@@ -254,6 +277,8 @@ def run_episode(spec: TrialSpec) -> dict[str, Any]:
     at_goal_final = bool(info.get("at_goal", False))
     learning = recipe.learner is not None
     data_steps = built.prior_data_steps + (steps if is_mpc else 0)
+    dt = float(env.unwrapped.nominal_model.dt)
+    since = info.get("at_goal_since")
     metrics: dict[str, Any] = {
         "family": recipe.family,
         "mode": recipe.mode if is_mpc else "policy",
@@ -261,6 +286,12 @@ def run_episode(spec: TrialSpec) -> dict[str, Any]:
         "success_held": bool(success_arr[-1]),
         "at_goal_final": at_goal_final,
         "time_to_success_s": times[first] if first >= 0 else float("nan"),
+        # when the final stretch held at the goal began (s into the episode; NaN: no success)
+        "at_goal_since_s": (float(since) if bool(success_arr[-1]) and since is not None
+                            else float("nan")),
+        # initial data plus that: the interaction time before success (issue 44's headline)
+        "interaction_s": interaction_time(built.prior_data_steps if learning else 0, dt, info)
+        if not episodic else float("nan"),
         "cost": episode.cost,
         "final_distance": float(info.get("distance_to_goal", np.nan)),
         "final_position_error": position_error,
@@ -305,6 +336,76 @@ def run_episode(spec: TrialSpec) -> dict[str, Any]:
     if is_mpc:
         for name, value in agent.diagnostics_arrays().items():
             arrays[f"diag_{name}"] = value
+    return {"metrics": metrics, "arrays": arrays, "episode": episode}
+
+
+MAX_TRIALS = 5
+"""Most controlled trials of a multi-trial run (``kind="trials"``): PILCO needed 5 in GP-MPC's
+comparison."""
+
+
+def run_trials(spec: TrialSpec) -> dict[str, Any]:
+    """Trials on one system until success (``kind="trials"``), GP-MPC's protocol.
+
+    Trial 1 is :func:`run_episode`'s episode (its metrics are this trial's metrics). While it
+    has not succeeded, a learning recipe runs another trial, up to :data:`MAX_TRIALS`: a fresh
+    agent of the same recipe pretrained on every transition so far (the initial data and every
+    earlier trial's), learning online as always, from a new start on the same system
+    (``env.reset(options={"keep_system": True})``, the env's own start distribution continuing
+    from the seeded first reset). Recipes that learn nothing run one trial.
+
+    Added metrics: ``trials`` (run), ``trials_to_success`` (NaN: none within the limit),
+    ``interaction_trials_s`` (the initial data, every failed trial's steps, and the successful
+    trial's ``at_goal_since``; NaN: no success), ``trial_costs`` / ``trial_successes``
+    (per trial, as text) and ``data_steps_trials`` (env steps of data used by the end).
+
+    Raises:
+        ControllerUnavailableError: the controller cannot run on this env/scenario.
+        ValueError: a controller not built from a library recipe (``make_mpc``).
+    """
+    from gp_agents import Transitions, make_mpc
+
+    recipe = CONTROLLERS[spec.controller]
+    if recipe.family != "mpc" or recipe.recipe is None:
+        raise ValueError(f"multi-trial runs take a recipe-built MPC (<recipe>-mpc), got "
+                         f"{spec.controller!r}")
+    t_build = time.perf_counter()
+    env, built, options = build_episode(spec)
+    first = _episode_result(spec, env, built, options, time.perf_counter() - t_build)
+    metrics, arrays = dict(first["metrics"]), dict(first["arrays"])
+    episode = first["episode"]
+    dt = float(env.unwrapped.nominal_model.dt)
+    learning = recipe.learner is not None
+    data = built.data
+    initial = len(data) if data is not None else 0
+    costs, successes = [episode.cost], [episode.success]
+    earlier = 0
+    while learning and not episode.success and len(costs) < MAX_TRIALS:
+        earlier += episode.steps
+        new = Transitions(episode.observations[:-1], episode.actions.astype(np.float32)
+                          .astype(float), episode.observations[1:])
+        data = new if data is None else Transitions(*(np.concatenate([a, b]) for a, b in zip(
+            (data.X, data.U, data.X_next), (new.X, new.U, new.X_next), strict=True)))
+        settings = ({"constraints": Constraints(uncertainty_radius=spec.cell.kappa)}
+                    if spec.cell.kappa else {})
+        agent = make_mpc(env, recipe.recipe, scheme=recipe.scheme, **settings)
+        agent.pretrain(data)
+        episode = rollout(env, agent, None, options={"keep_system": True},
+                          max_steps=spec.max_steps)
+        costs.append(episode.cost)
+        successes.append(episode.success)
+        k = len(costs)
+        arrays[f"trial{k}_obs"] = episode.observations
+        arrays[f"trial{k}_action"] = episode.actions
+    k = len(costs)
+    metrics.update({
+        "trials": k,
+        "trials_to_success": k if episode.success else float("nan"),
+        "interaction_trials_s": interaction_time(initial, dt, episode.final_info, earlier),
+        "trial_costs": " ".join(f"{c:.3f}" for c in costs),
+        "trial_successes": "".join("1" if x else "0" for x in successes),
+        "data_steps_trials": int(initial + earlier + episode.steps),
+    })
     env.close()
     return {"metrics": metrics, "arrays": arrays}
 
@@ -405,6 +506,7 @@ def _lazy(module: str, function: str) -> Callable[[TrialSpec], dict[str, Any]]:
 
 JOB_KINDS: dict[str, Callable[[TrialSpec], dict[str, Any]]] = {
     "episode": run_episode,
+    "trials": run_trials,
     "ssgp-act-scaling": _lazy("benchmarks.compute", "run_act_scaling"),
     "ssgp-update-time": _lazy("benchmarks.compute", "run_update_time"),
     "step-vs-nodes": _lazy("benchmarks.compute", "run_step_scaling"),

@@ -126,17 +126,18 @@ def _probe(agent: PseudospectralMPC) -> dict:
     }
 
 
-_DATA: dict[str, Transitions] = {}
+_DATA: dict[tuple[str, int], Transitions] = {}
 
 
 def _agent(system: str, learner: bool, steps: int = 3, **settings) -> PseudospectralMPC:
     env = _env(system)
-    if system not in _DATA:
-        _DATA[system] = collect_initial_data(env, 40, seed=1)
+    n_data = settings.pop("_n_data", 40)  # initial samples (the refit setting needs few)
+    if (system, n_data) not in _DATA:
+        _DATA[(system, n_data)] = collect_initial_data(env, n_data, seed=1)
     env.reset(seed=0)
     agent = PseudospectralMPC.from_env(env, online_ssgp(10) if learner else None, **settings)
     if learner:
-        agent.pretrain(_DATA[system])
+        agent.pretrain(_DATA[(system, n_data)])
     agent._probe_env, agent._probe_steps = env, steps
     return agent
 
@@ -175,6 +176,8 @@ _SETTINGS = {
     "Residual.sensitivities": ("pendulum", True, {},
                                {"residual": Residual(sensitivities=True)}),
     "Residual.learn_online": ("pendulum", True, {}, {"residual": Residual(learn_online=False)}),
+    "Residual.refit_until": ("pendulum", True, {"_n_data": 2},
+                             {"_n_data": 2, "residual": Residual(refit_until=10)}),
     "Constraints.state_margin": ("pendulum", False, {},
                                  {"constraints": Constraints(state_margin=0.2)}),
     "Constraints.state_penalty": ("pendulum", False, {},
@@ -228,6 +231,10 @@ def test_jit_reaches_the_solver_build(monkeypatch):
     ("pendulum", True, {"horizon": Episodic(), "residual": Residual(learn_online=True)},
      ValueError, "learns nothing"),
     ("pendulum", False, {"term": "linearized"}, ValueError, "no learner"),
+    ("pendulum", True, {"horizon": Episodic(), "residual": Residual(refit_until=10)},
+     ValueError, "refit"),
+    ("pendulum", True, {"residual": Residual(learn_online=False, refit_until=10)},
+     ValueError, "refit"),
     ("pendulum", False, {"residual": Residual(sensitivities=True)}, ValueError, "no learner"),
     ("pendulum", False, {"constraints": Constraints(obstacle_margin=0.3)}, ValueError,
      "no obstacles"),

@@ -133,7 +133,8 @@ class PseudospectralMPC:
             upper-bound baseline, the true model the benchmark hands in).
         learner: a residual learner (:class:`~gp_agents.learners.IncrementalSSGP`,
             :class:`~gp_agents.learners.SSGP`, :class:`~gp_agents.learners.ExactGP`) or None
-            (pure physics). It must be fitted before the first ``act`` (:meth:`pretrain`).
+            (pure physics). It must be fitted before the first ``act`` (:meth:`pretrain`;
+            ``pretrain(None)``: no initial data, learned from the first step).
         horizon: when and over what to plan: a
             :class:`~gp_agents.mpc.schedule.RecedingHorizon` (Algorithm 1; a number is its
             length in seconds) or an :class:`~gp_agents.mpc.schedule.Episodic` (plan once over
@@ -213,6 +214,13 @@ class PseudospectralMPC:
         self.planner: Planner | None = None
         self._model_source: Callable[[], ControlModel] | None = None
         self._buffer: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        # every transition learned (initial data, then online), for the refits of
+        # Residual.refit_until and the first fit of a learner with no initial data
+        self._learned: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        self._fitted_on = 0
+        self._start_empty = False  # pretrain(None): plan with the model alone until data come
+        self._no_term = NoLearnedTerm()  # what an unfitted learner's MPC plans with
+        self._no_term.attach(self.residual, None)
         self.n_builds = 0
         self.reset()
 
@@ -296,14 +304,18 @@ class PseudospectralMPC:
         agent._model_source = source
         return agent
 
-    def pretrain(self, data: Transitions | tuple[np.ndarray, np.ndarray, np.ndarray]
+    def pretrain(self, data: Transitions | tuple[np.ndarray, np.ndarray, np.ndarray] | None
                  ) -> PseudospectralMPC:
         """Fit the learner on initial transitions (Algorithm 1, line 1); returns ``self``.
 
         Args:
             data: :class:`~gp_agents.data.Transitions` (from
                 :func:`~gp_agents.data.collect_initial_data`), or a tuple ``(X, U, X_next)`` of
-                arrays (N, n), (N, m), (N, n) in the model's units.
+                arrays (N, n), (N, m), (N, n) in the model's units; or None: no initial data,
+                learn from the first step (the MPC plans with its model alone until the first
+                observed transition, on which the learner is then fitted; every later one
+                updates it, or refits it as :class:`~gp_agents.mpc.settings.Residual`'s
+                ``refit_until`` says).
 
         Raises:
             ValueError: no learner; no transitions; shapes that do not match the model;
@@ -312,10 +324,22 @@ class PseudospectralMPC:
         """
         if self.learner is None:
             raise ValueError("this agent has no learner to pretrain")
+        if data is None:
+            if not self.learn_online:
+                raise ValueError("pretrain(None) learns from the first step: it needs online "
+                                 "learning (a receding horizon, a learner with update())")
+            if self._model_source is not None:
+                self._set_model(self._model_source(), learner_trained=False)
+            self._start_empty, self._learned, self._fitted_on = True, [], 0
+            self.planner = None
+            return self
         X, U, X_next = _transitions(data, self.model)
         if self._model_source is not None:  # learn against the env's current nominal model
             self._set_model(self._model_source(), learner_trained=False)
+        self._start_empty = False
         self.learner.fit(*self.residual.targets(X, U, X_next))
+        self._learned = [(X.copy(), U.copy(), X_next.copy())]
+        self._fitted_on = len(X)
         self.planner = None  # the learner's parameter layout may have changed
         return self
 
@@ -361,10 +385,19 @@ class PseudospectralMPC:
             return False
 
     def _planner(self) -> Planner:
-        """The planner, (re)built if the learned term's parameter layout changed."""
-        size = self.term.param_values().size  # raises RuntimeError for an unfitted learner
+        """The planner, (re)built if the learned term's parameter layout changed.
+
+        A learner with no data yet (never pretrained, nothing observed) is not in the plan:
+        the MPC plans with the model alone until its first transitions are learned (then
+        the planner is rebuilt with the learned term)."""
+        unfitted = (self._start_empty and self.learner is not None
+                    and not self._learner_fitted())
+        term = self._no_term if unfitted else self.term
+        size = term.param_values().size  # raises RuntimeError for an unfitted learner
         planning = self.planner.planning if self.planner is not None else None
-        if planning is None or size != planning.n_params - planning.n_nominal:
+        if (planning is None or planning.term is not term
+                or size != planning.n_params - planning.n_nominal):
+            previous = self.planner
             settings = self.scheme_settings
             if isinstance(settings, RTI):
                 planner: type[Planner] = SplitRTIPlanner if settings.split else RTIPlanner
@@ -374,9 +407,13 @@ class PseudospectralMPC:
                                          **settings.fallback.planner_settings()}
             else:
                 planner, extra = Planner, settings.planner_settings()
-            self.planner = planner(PlanningModel(self.model, self.residual, self.term),
+            self.planner = planner(PlanningModel(self.model, self.residual, term),
                                    self.mesh, self.constraints, **extra)
             self.n_builds += 1
+            if previous is not None and previous.planning.term is self._no_term:
+                for count in ("n_solves", "n_failures", "n_fallbacks", "n_retries", "n_capped"):
+                    setattr(self.planner, count, getattr(self.planner, count)
+                            + getattr(previous, count))
         return self.planner
 
     # ------------------------------------------------------------------ acting
@@ -479,10 +516,26 @@ class PseudospectralMPC:
             self._buffer.append((x, np.clip(u, self.model.u_lb, self.model.u_ub), xn))
 
     def _flush_learning(self) -> None:
-        if self._buffer:
-            X, U, Xn = (np.array(a) for a in zip(*self._buffer, strict=True))
-            self._buffer.clear()
+        if not self._buffer:
+            return
+        X, U, Xn = (np.array(a) for a in zip(*self._buffer, strict=True))
+        self._buffer.clear()
+        self._learned.append((X, U, Xn))
+        seen = sum(len(x) for x, _, _ in self._learned)
+        refit = (self._fitted_on < self.residual_settings.refit_until
+                 and seen >= 2 * self._fitted_on)
+        if refit or not self._learner_fitted():
+            # the first fit of a learner without initial data, or a refit (Residual.refit_until)
+            X, U, Xn = (np.concatenate(a) for a in zip(*self._learned, strict=True))
+            self.learner.fit(*self.residual.targets(X, U, Xn))
+            self._fitted_on = seen
+        else:
             self.learner.update(*self.residual.targets(X, U, Xn))
+
+    @property
+    def n_learned(self) -> int:
+        """Transitions the learner has been given (initial data and online), 0 without one."""
+        return sum(len(x) for x, _, _ in self._learned) + len(self._buffer)
 
     def _learner_samples(self) -> int:
         return int(getattr(self.learner, "n_samples_seen_", 0)) if self.learner is not None else 0
@@ -674,7 +727,10 @@ def _check_combination(model: ControlModel, learner: Any, schedule: RecedingHori
         if residual != Residual():
             raise ValueError(f"residual={residual!r} configures the learned residual; this MPC "
                              f"has no learner")
-    elif residual.learn_online:
+    elif residual.refit_until and (residual.learn_online is False or not schedule.learns):
+        raise ValueError("Residual(refit_until=...) refits the learner on the transitions it "
+                         "learns online: it does not apply without online learning")
+    if learner is not None and residual.learn_online:
         if not schedule.learns:
             raise ValueError("an episodic plan is run open loop and learns nothing: "
                              "residual=Residual(learn_online=True) does not apply")

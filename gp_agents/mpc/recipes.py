@@ -10,6 +10,10 @@
 ``nominal``    physics only (the nominal model), no learning
 ``oracle``     plans with the true model (:func:`gp_envs.oracle_model`): the upper bound that
                no controller can see in practice
+``blackbox``   no physics prior (the GP-MPC / PILCO family's baseline): the model knows only
+               the kinematics (position rates are the velocities,
+               :func:`~gp_agents.mpc.blackbox.blackbox_model`) and an online SSGP learns every
+               acceleration from the data, linearized per node
 =============  ==============================================================================
 
 Each recipe resolves its own coupled settings (the robust learner's sensitivity columns come
@@ -27,6 +31,7 @@ import gymnasium as gym
 
 import gp_envs
 from gp_agents.learners.recipes import online_ssgp, parametric_ssgp
+from gp_agents.mpc.blackbox import BlackBoxModel
 from gp_agents.mpc.controller import PseudospectralMPC
 from gp_agents.mpc.settings import RTI, Converged, Residual, scheme_settings
 from gp_envs.model import ControlModel
@@ -40,8 +45,18 @@ RECIPES: dict[str, str] = {
     "nominal": "nominal physics only, no learning",
     "oracle": "the true model (gp_envs.oracle_model): an upper bound, not a controller you can "
               "deploy",
+    "blackbox": "no physics prior (GP-MPC's baseline): kinematics only, an online SSGP learns "
+                "every acceleration from the data, linearized per node",
 }
 """Every recipe name with its one-line description."""
+
+BLACKBOX_LINEAR_FEATURES = True
+"""The black-box learner's linear features (on every input: a force enters an acceleration
+linearly), chosen on tuning seeds (``docs/studies/data_efficiency.md``)."""
+BLACKBOX_REFIT_UNTIL = 100
+"""The black-box recipe's ``Residual(refit_until=...)``: with no prior, the hyperparameters and
+input scales fitted on a few samples are refitted as the data double, up to 100 samples
+(``docs/studies/data_efficiency.md``)."""
 
 DEFAULT_RECIPE = "robust"
 """The recipe of ``make_mpc(env)``."""
@@ -78,6 +93,11 @@ def recipe_settings(recipe: str, scheme: str | Converged | RTI | None = None
         out.update(learner=parametric_ssgp(), residual=Residual(sensitivities=True))
         if isinstance(settings, Converged):  # the RTI takes the system's tuned term
             out["term"] = "linearized"
+    elif recipe == "blackbox":
+        out.update(learner=online_ssgp(linear_features=BLACKBOX_LINEAR_FEATURES),
+                   residual=Residual(refit_until=BLACKBOX_REFIT_UNTIL))
+        if isinstance(settings, Converged):
+            out["term"] = "linearized"
     return out
 
 
@@ -87,7 +107,8 @@ def make_mpc(env: gym.Env, recipe: str = DEFAULT_RECIPE, *,
 
     Args:
         env: a ``gp_envs`` environment (``gym.make``).
-        recipe: ``"robust"`` (default), ``"paper"``, ``"nominal"`` or ``"oracle"``.
+        recipe: ``"robust"`` (default), ``"paper"``, ``"nominal"``, ``"oracle"`` or
+            ``"blackbox"``.
         scheme: ``"converged"`` (default), ``"rti"``, ``"rti-split"`` or a
             :class:`~gp_agents.mpc.settings.Converged` / :class:`~gp_agents.mpc.settings.RTI`.
         **overrides: constructor settings of
@@ -112,8 +133,9 @@ def make_mpc(env: gym.Env, recipe: str = DEFAULT_RECIPE, *,
     settings = recipe_settings(recipe, scheme)
     if "learner" in overrides and settings["learner"] is None and overrides["learner"] is not None:
         raise ValueError(f"recipe {recipe!r} learns nothing: it takes no learner (the learning "
-                         f"recipes: 'robust', 'paper')")
+                         f"recipes: 'robust', 'paper', 'blackbox')")
     settings.update(overrides)
     learner = settings.pop("learner")
-    source = OracleModel(env) if recipe == "oracle" else None
+    source = (OracleModel(env) if recipe == "oracle" else BlackBoxModel(env)
+              if recipe == "blackbox" else None)
     return PseudospectralMPC.from_env(env, learner, model_source=source, **settings)

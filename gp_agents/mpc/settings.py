@@ -170,12 +170,21 @@ class Residual:
         learn_online: feed each observed transition to the learner's ``update`` before the next
             plan (Algorithm 1). None: when the horizon is receding and the learner has an
             ``update``; True where neither holds raises.
+        refit_until: while the learner was last fitted on fewer transitions than this, refit
+            it (hyperparameters, standardization, frequencies: ``fit``) on every transition
+            learned so far, its initial data included, each time their number has doubled
+            since that fit, instead of only updating its weights. 0 (the default): never refit.
+            A learner fitted on a handful of samples keeps that handful's input scales and
+            length scales for good otherwise. Whatever this is, a learner with no initial data
+            (never pretrained) is fitted on the first transitions it sees, and until then the
+            MPC plans with the model alone.
     """
 
     uncertain: tuple[int, ...] | None = None
     inputs: tuple[int, ...] | Literal["model"] | None = None
     sensitivities: bool = False
     learn_online: bool | None = None
+    refit_until: int = 0
 
     def __post_init__(self) -> None:
         if self.uncertain is not None:
@@ -187,3 +196,7 @@ class Residual:
         if self.learn_online is not None and not isinstance(self.learn_online, bool):
             raise TypeError(f"Residual: learn_online must be a bool or None, got "
                             f"{self.learn_online!r}")
+        if (isinstance(self.refit_until, bool) or not isinstance(self.refit_until, int)
+                or self.refit_until < 0):
+            raise ValueError(f"Residual: refit_until must be an integer >= 0, got "
+                             f"{self.refit_until!r}")
