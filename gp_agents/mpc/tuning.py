@@ -26,9 +26,9 @@ are in the documentation):
   latency at the same outcomes.
 
 - Recovery iterations (a rejected step's feasibility projections and SQP step before the
-  converged fallback): 3, which brings the cart pole's and the quadrotor's rejected steps from
-  5-23% to under 2% at the same outcomes; 0 on the Dubins vehicle, where a third of the steps
-  would need it and the recovered plans cost 40% more than converged ones (on tuning seeds).
+  converged fallback): 3, which removes most of the cart pole's and the quadrotor's rejected
+  steps at the same outcomes; 0 on the Dubins vehicle, where recovered plans cost clearly more
+  than converged ones (decision record ``docs/studies/rti_recovery.md``, tuning seeds).
 
 A system without an entry gets :class:`RTITuning`'s defaults; a model of no registered system at
 all gets the plain ``"osqp"`` QP solver.
