@@ -561,6 +561,9 @@ def test_sample_efficiency_against_the_preset_in_seconds_and_steps(preset_dir: P
     assert mpc["mean cost <= 1.1x the oracle MPC's", "`robust-mpc`"][-1] == "4x"  # 200 / 48
     text = "\n".join(lines)
     assert "seeds 500-501" in text and "(10.00: <= 11.00)" in text
+    # the reference without learning quoted from the preset (no nominal row here)
+    assert ("in the same preset: oracle MPC (`oracle-mpc`) success 1.00, cost 10.00, "
+            "interaction before success 1.50 s.") in text
     never = [_curve_run(k, [0, 0, 0], [30, 30, 30]) for k in range(3)]
     success = next(ln for ln in sample_efficiency_lines(never, anchors, 200)
                    if ln.startswith("| success rate >= 0.8 | `robust-mpc`"))
