@@ -489,8 +489,16 @@ def preset_dir(tmp_path: Path) -> Path:
 
 def test_the_preset_cell_of_each_criterion_is_the_fewest_samples_meeting_it(
         preset_dir: Path) -> None:
-    from benchmarks.rl.summary import anchor_cell, mpc_cost_bound, read_data_efficiency
+    from benchmarks.presets import data_efficiency
+    from benchmarks.rl.summary import (
+        PLAIN_CELL,
+        anchor_cell,
+        mpc_cost_bound,
+        read_data_efficiency,
+    )
 
+    # the cell the preset runs is the one read: the scenario as registered
+    assert {s.cell.describe() for s in data_efficiency(seeds=(0,)).specs} == {PLAIN_CELL}
     rows = read_data_efficiency("cartpole", "online", preset_dir)
     assert sorted((r["controller"], r["n_init"]) for r in rows) == [
         ("blackbox-mpc", 0), ("blackbox-mpc", 20), ("oracle-mpc", 0), ("robust-mpc", 0),
