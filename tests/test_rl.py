@@ -444,29 +444,192 @@ def test_median_iqr_ci() -> None:
     assert one["median"] == 0.5 and np.isnan(one["ci_lo"]) and np.isnan(one["ci_hi"])
 
 
-def test_sample_efficiency_counts_a_seed_that_never_gets_there_as_beyond_the_budget() -> None:
-    from benchmarks.rl.summary import SeedRun, sample_efficiency_lines
+_PRESET_COLUMNS = ("experiment", "env", "scenario", "cell", "n_init", "controller", "label",
+                   "status", "episodes", "success_rate", "cost_mean", "interaction_mean_s",
+                   "interaction_ci_low", "interaction_ci_high", "trials_success_rate",
+                   "interaction_trials_mean_s", "interaction_trials_ci_low",
+                   "interaction_trials_ci_high")
 
-    def run(seed: int, success: list[float], cost: list[float]) -> SeedRun:
-        curve = [{"timesteps": 100.0 * i, "success_rate": s, "mean_cost": c}
-                 for i, (s, c) in enumerate(zip(success, cost, strict=True))]
-        return SeedRun(seed, Path("."), curve, None)
 
-    refs = {"oracle-mpc": {"success_rate": 1.0, "mean_cost": 10.0, "data_steps": 50.0,
-                           "episodes": 20},
-            "ssgp-mpc": {"success_rate": 0.9, "mean_cost": 20.0, "data_steps": 50.0,
-                         "episodes": 20}}
-    runs = [run(0, [0, 0.9, 1], [30, 12, 10.5]), run(1, [0, 0, 0.8], [30, 20, 11]),
-            run(2, [0, 0, 0], [30, 30, 30])]
-    rows = [ln for ln in sample_efficiency_lines(runs, refs, 200) if ln.startswith("| ")][1:]
-    success, cost = (row.split(" | ") for row in rows)
-    assert success[1:3] == ["2/3", "200 [100, > 200]"]  # steps 100, 200 and "never"
-    assert success[3:] == ["50", "4x |"]
-    assert cost[1:3] == ["2/3", "200 [200, > 200]"]  # cost <= 11 at 200 (seeds 0, 1)
-    assert cost[3:] == ["not met", "n/a |"]  # the SSGP-MPC's 20 is not within 10% of 10
-    runs[0], runs[1] = run(0, [0, 0, 0], [30, 30, 30]), run(1, [0, 0, 0], [30, 30, 30])
-    success = next(ln for ln in sample_efficiency_lines(runs, refs, 200) if "0.8 |" in ln)
-    assert "| 0/3 | > 200 [> 200, > 200] | 50 | > 4x |" in success
+def _preset_row(controller: str, n_init: int, success: float, cost: float,
+                interaction: tuple[float, float, float], trials: float = float("nan"),
+                trials_interaction: tuple[float, float, float] = (float("nan"),) * 3,
+                env: str = "cartpole", cell: str = "fixed truth", episodes: int = 10
+                ) -> dict[str, object]:
+    return dict(zip(_PRESET_COLUMNS, ("data-efficiency", env, "online", cell, n_init, controller,
+                                      controller.replace("-mpc", " MPC"), "ok", episodes,
+                                      success, cost, *interaction, trials,
+                                      *trials_interaction), strict=True))
+
+
+@pytest.fixture
+def preset_dir(tmp_path: Path) -> Path:
+    """A synthetic data-efficiency ``summary.csv`` (cart pole ``online``): the robust recipe
+    meets success 0.8 first at 5 samples (exactly the bar; 10 samples dips below), within the
+    trials at 0, the cost bound 1.1 x 10 = 11 first at 10; the black-box never reaches 0.8 in
+    trial 1; rows of another cell, another env and a cell with no episode must be ignored."""
+    nan = float("nan")
+    rows = [_preset_row("oracle-mpc", 0, 1.0, 10.0, (1.5, 1.4, 1.6)),
+            _preset_row("robust-mpc", 0, 0.5, 30.0, (3.0, nan, nan), 0.9, (6.0, 5.0, 7.0)),
+            _preset_row("robust-mpc", 5, 0.8, 11.5, (2.0, 1.5, 2.5), 1.0, (2.2, 1.6, 2.6)),
+            _preset_row("robust-mpc", 10, 0.7, 10.9, (2.4, 2.0, 2.8), 1.0, (2.5, 2.1, 2.9)),
+            _preset_row("robust-mpc", 20, 1.0, 10.5, (2.6, 2.5, 2.7), 1.0, (2.6, 2.5, 2.7)),
+            _preset_row("blackbox-mpc", 0, 0.1, 90.0, (4.5, nan, nan), 0.7, (12.0, 9.0, 15.0)),
+            _preset_row("blackbox-mpc", 20, 0.6, 40.0, (5.0, 4.0, 6.0), 1.0, (8.0, 7.0, 9.0)),
+            # ignored: another cell, another env, no episodes
+            _preset_row("robust-mpc", 0, 1.0, 10.0, (0.1, 0.1, 0.1), cell="randomize 0.1"),
+            _preset_row("robust-mpc", 0, 1.0, 10.0, (0.1, 0.1, 0.1), env="dubins"),
+            _preset_row("blackbox-mpc", 1, 1.0, 10.0, (0.1, 0.1, 0.1), episodes=0)]
+    with open(tmp_path / "summary.csv", "w", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=_PRESET_COLUMNS)
+        writer.writeheader()
+        writer.writerows(rows)
+    return tmp_path
+
+
+def test_the_preset_cell_of_each_criterion_is_the_fewest_samples_meeting_it(
+        preset_dir: Path) -> None:
+    from benchmarks.presets import data_efficiency
+    from benchmarks.rl.summary import (
+        PLAIN_CELL,
+        anchor_cell,
+        mpc_cost_bound,
+        read_data_efficiency,
+    )
+
+    # the cell the preset runs is the one read: the scenario as registered
+    assert {s.cell.describe() for s in data_efficiency(seeds=(0,)).specs} == {PLAIN_CELL}
+    rows = read_data_efficiency("cartpole", "online", preset_dir)
+    assert sorted((r["controller"], r["n_init"]) for r in rows) == [
+        ("blackbox-mpc", 0), ("blackbox-mpc", 20), ("oracle-mpc", 0), ("robust-mpc", 0),
+        ("robust-mpc", 5), ("robust-mpc", 10), ("robust-mpc", 20)]
+    assert mpc_cost_bound(rows) == pytest.approx(11.0)
+    success = anchor_cell(rows, "robust-mpc", "success")
+    assert (success.n_init, success.seeds, success.cost) == (5, 8, 11.5)
+    assert success.interaction_s == 2.0 and (success.ci_low, success.ci_high) == (1.5, 2.5)
+    np.testing.assert_allclose(success.steps(0.05), (40.0, 30.0, 50.0))
+    trials = anchor_cell(rows, "robust-mpc", "trials")  # the failed trials' interaction
+    assert (trials.n_init, trials.interaction_s, trials.seeds) == (0, 6.0, 9)
+    assert anchor_cell(rows, "robust-mpc", "cost").n_init == 10  # 11.5 > 11 >= 10.9
+    assert anchor_cell(rows, "blackbox-mpc", "success") == "not met at 0-20 initial samples"
+    assert anchor_cell(rows, "blackbox-mpc", "trials").n_init == 20
+    assert anchor_cell(rows, "paper-mpc", "success") == "not in the preset"
+    no_oracle = [r for r in rows if r["controller"] != "oracle-mpc"]
+    assert anchor_cell(no_oracle, "robust-mpc", "cost") == "not measured"
+    assert anchor_cell(no_oracle, "robust-mpc", "success") == success
+    with pytest.raises(ValueError, match="criterion"):
+        anchor_cell(rows, "robust-mpc", "speed")
+    assert read_data_efficiency("cartpole", "online", preset_dir / "missing") == []
+
+
+def _curve_run(seed: int, success: list[float], cost: list[float]) -> object:
+    from benchmarks.rl.summary import SeedRun
+
+    curve = [{"timesteps": 100.0 * i, "success_rate": s, "mean_cost": c}
+             for i, (s, c) in enumerate(zip(success, cost, strict=True))]
+    return SeedRun(seed, Path("."), curve, None)
+
+
+def _table(lines: list[str], first_header: str) -> list[list[str]]:
+    """The cells of the Markdown table whose header starts with ``first_header``."""
+    start = next(i for i, ln in enumerate(lines) if ln.startswith(f"| {first_header} |"))
+    rows = []
+    for ln in lines[start + 2:]:
+        if not ln.startswith("|"):
+            break
+        rows.append([c.strip() for c in ln.strip("|").split("|")])
+    return rows
+
+
+def test_sample_efficiency_against_the_preset_in_seconds_and_steps(preset_dir: Path) -> None:
+    """RL: first evaluation meeting each criterion per seed, censored beyond the budget, in
+    steps and steps x dt; MPC: the chosen cell's interaction in s and s / dt; the ratio of
+    the two step counts, censored with ">" when RL's median is."""
+    from benchmarks.rl.summary import EnvAnchors, read_data_efficiency, sample_efficiency_lines
+
+    anchors = EnvAnchors("cartpole", "online", {"mean_cost": 10.0, "episodes": 20},
+                         read_data_efficiency("cartpole", "online", preset_dir), [500, 501],
+                         0.05)
+    runs = [_curve_run(0, [0, 0.9, 1], [30, 12, 10.5]), _curve_run(1, [0, 0, 0.8], [30, 20, 11]),
+            _curve_run(2, [0, 0, 0], [30, 30, 30])]
+    lines = sample_efficiency_lines(runs, anchors, 200)
+    rl = _table(lines, "criterion")
+    assert rl[0][1:] == ["2/3", "200 [100, > 200]", "10 [5, > 10]"]  # steps 100, 200, never
+    assert rl[1][1:] == ["2/3", "200 [200, > 200]", "10 [10, > 10]"]  # cost <= 11 at 200
+    mpc = {(r[0], r[1]): r[2:] for r in _table(lines[lines.index(next(
+        ln for ln in lines if "MPC recipe" in ln)):], "criterion")}
+    assert mpc["success rate >= 0.8", "`robust-mpc`"] == [
+        "5 (0.25 s)", "0.80 / 1.00, 11.50", "2.00 [1.50, 2.50] (8)", "40 [30, 50]", "5x"]
+    assert mpc["success rate >= 0.8", "`blackbox-mpc`"] == [
+        "not met at 0-20 initial samples", "", "", "", "n/a"]
+    # no interval from the preset: the mean alone
+    assert mpc["success rate >= 0.8 (MPC: within 5 trials)", "`robust-mpc`"][2:] == [
+        "6.00 [5.00, 7.00] (9)", "120 [100, 140]", "2x"]
+    assert mpc["mean cost <= 1.1x the oracle MPC's", "`robust-mpc`"][0] == "10 (0.5 s)"
+    assert mpc["mean cost <= 1.1x the oracle MPC's", "`robust-mpc`"][-1] == "4x"  # 200 / 48
+    text = "\n".join(lines)
+    assert "seeds 500-501" in text and "(10.00: <= 11.00)" in text
+    # the reference without learning quoted from the preset (no nominal row here)
+    assert ("in the same preset: oracle MPC (`oracle-mpc`) success 1.00, cost 10.00, "
+            "interaction before success 1.50 s.") in text
+    never = [_curve_run(k, [0, 0, 0], [30, 30, 30]) for k in range(3)]
+    success = next(ln for ln in sample_efficiency_lines(never, anchors, 200)
+                   if ln.startswith("| success rate >= 0.8 | `robust-mpc`"))
+    assert success.endswith("| > 5x |")  # the budget, 200, over 40 steps
+
+
+def test_sample_efficiency_without_a_preset_cell_says_so_in_one_line() -> None:
+    from benchmarks.rl.summary import EnvAnchors, sample_efficiency_lines
+
+    anchors = EnvAnchors("cartpole", "nowhere", {"mean_cost": 10.0, "episodes": 20}, [], [],
+                         0.05)
+    lines = sample_efficiency_lines([_curve_run(0, [0, 1], [30, 10])], anchors, 200)
+    said = [ln for ln in lines if "no cell for `cartpole` `nowhere`" in ln]
+    assert len(said) == 1 and "no ratio" in said[0]
+    assert not any("MPC recipe" in ln or ln.endswith("x |") for ln in lines)
+    assert "| success rate >= 0.8 | 1/1 | 100 | 5 |" in lines
+
+
+def test_the_anchor_is_the_first_trials_interaction_of_the_committed_episodes() -> None:
+    """Against the preset's per-episode file: the chosen cart-pole cell's mean interaction
+    and success count are those of its episodes in ``metrics.csv``, and no cell with fewer
+    initial samples succeeded on at least 0.8 of its episodes."""
+    from benchmarks.rl.summary import (
+        DATA_EFFICIENCY,
+        SUCCESS_BAR,
+        anchor_cell,
+        read_data_efficiency,
+    )
+
+    if not (DATA_EFFICIENCY / "metrics.csv").is_file():
+        pytest.skip("no committed data-efficiency results")
+    cell = anchor_cell(read_data_efficiency("cartpole", "online"), "robust-mpc", "success")
+    with open(DATA_EFFICIENCY / "metrics.csv", newline="") as fh:
+        episodes = [r for r in csv.DictReader(fh)
+                    if (r["env"], r["scenario"], r["controller"]) ==
+                    ("cartpole", "online", "robust-mpc") and r["status"] == "ok"]
+    by_n: dict[int, list[dict[str, str]]] = {}
+    for e in episodes:
+        by_n.setdefault(int(e["n_init"]), []).append(e)
+    rate = {n: np.mean([e["success"] == "True" for e in es]) for n, es in by_n.items()}
+    assert cell.n_init == min(n for n, r in rate.items() if r >= SUCCESS_BAR)
+    won = [float(e["interaction_s"]) for e in by_n[cell.n_init] if e["success"] == "True"]
+    assert cell.seeds == len(won) and cell.episodes == len(by_n[cell.n_init])
+    assert cell.interaction_s == pytest.approx(np.mean(won))
+    assert cell.ci_low <= cell.interaction_s <= cell.ci_high
+
+
+def test_env_dt_is_the_time_one_env_step_advances() -> None:
+    from benchmarks.rl.summary import env_dt
+
+    for env_id, short, scenario in (("gp_envs/CartPoleSwingUp-v0", "cartpole", "online"),
+                                    ("gp_envs/DubinsObstacle-v0", "dubins", "paper")):
+        env = gym.make(env_id, scenario=scenario)
+        env.reset(seed=0)
+        times = [env.step(env.action_space.sample() * 0)[-1]["time"] for _ in range(3)]
+        env.close()
+        assert env_dt(short, scenario) == pytest.approx(np.diff(times).mean())
+        assert env_dt(env_id, scenario) == env_dt(short, scenario)
 
 
 def test_summary_from_tiny_runs(sac_runs: dict, tmp_path: Path,
@@ -485,14 +648,16 @@ def test_summary_from_tiny_runs(sac_runs: dict, tmp_path: Path,
                 eval_freq=160, eval_episodes=1, checkpoint_freq=160, root=root,
                 description="tiny")
     monkeypatch.setitem(summary.PLANS, "tiny", plan)
-    refs = {c: {"success_rate": 1.0, "mean_cost": 13.0, "data_steps": 300.0, "episodes": 20}
-            for c in summary.MPC_REFERENCES}
-    monkeypatch.setattr(summary, "mpc_references", lambda env, scenario: refs)  # MPC: slow
+    oracle = {"success_rate": 1.0, "mean_cost": 13.0, "episodes": 20}
+    monkeypatch.setattr(summary, "oracle_reference", lambda env, scenario: oracle)  # MPC: slow
     path = summary.write_summary(["tiny"], out=tmp_path / "out")
     text = path.read_text()
     assert "**2 finished**" in text and "1 not started" in text
     assert "| success rate |" in text and "BoundedShiftReward" in text
     assert "### Sample efficiency" in text and "| success rate >= 0.8 | 0/2 | > 480 " in text
+    # the MPC side from the committed data-efficiency results of the cart pole (online)
+    assert "| success rate >= 0.8 | `robust-mpc` |" in text
+    assert "| success rate >= 0.8 | `blackbox-mpc` |" in text
     with open(tmp_path / "out" / "tiny_final_eval.csv", newline="") as fh:
         rows = list(csv.DictReader(fh))
     assert len(rows) == 40 and sorted({int(r["episode_seed"]) for r in rows}) == list(range(20))
