@@ -154,9 +154,11 @@ def sample_efficiency(seeds: Sequence[int] = (0, 1, 2, 3, 4)) -> Experiment:
     """Success and return against env steps used: MPCs vs RL learning curves."""
     return Experiment(
         "sample-efficiency", "Sample efficiency: MPC vs RL",
-        "Success rate and return against the env steps of data each controller used: the MPC "
-        "variants are points (initial data + the episode's steps for the learning MPCs, the "
-        "episode's steps for nominal/oracle), SAC/PPO are their training-time learning curves "
+        "Success rate and return against env steps of interaction: the MPC variants are "
+        "points at their interaction before success (initial data + the time the final "
+        "stretch held at the goal began, in env steps; where no seed succeeded, the data "
+        "used: initial data + the whole episode), SAC/PPO are their training-time learning "
+        "curves "
         "(`learning_curve.csv` shipped with each model: deterministic evaluations on reset "
         "seeds 1000..1009) and the final policies evaluated here on the same seeds as the MPCs.",
         episodes((*MPC_RECEDING, *RL_ALGORITHMS), SAMPLE_EFFICIENCY_ENVS, seeds),

@@ -792,12 +792,16 @@ def _learning_curve(env: str, algo: str) -> list[dict[str, float]]:
 
 
 def section_sample_efficiency(ctx: Context, exp: Experiment) -> list[str]:
-    """Success and return against env steps used; one figure per env."""
+    """Success and return against env steps of interaction; one figure per env. RL: its
+    training-time learning curves. MPC: the interaction before success (initial data plus the
+    time the final stretch held at the goal began, in env steps) where the cell succeeded,
+    else the env steps of data it used (initial data plus the whole episode)."""
     by = defaultdict(list)
     for r in ctx.summaries[exp.name]:
         by[(r["env"], r["scenario"])].append(r)
     lines: list[str] = []
     for (env, scenario), rows in by.items():
+        dt = float(_env_model(env, scenario).dt)
         fig, (ax_s, ax_r) = plt.subplots(1, 2, figsize=(11, 4))
         table = []
         for algo in RL_ALGORITHMS:
@@ -813,17 +817,20 @@ def section_sample_efficiency(ctx: Context, exp: Experiment) -> list[str]:
                           label=f"{algo.upper()} learning curve (training evals)")
         for r in rows:
             if not r["episodes"]:
-                table.append([r["label"], "", "", "", r["status"]])
+                table.append([r["label"], "", "", "", "", r["status"]])
                 continue
             point = _style(r["controller"]).point()
-            x = r["data_steps_mean"]
+            interaction = r.get("interaction_mean_s", math.nan)
+            before = (interaction / dt if r["controller"] not in RL_ALGORITHMS
+                      and math.isfinite(interaction) else math.nan)
+            x = before if math.isfinite(before) else r["data_steps_mean"]
             ax_s.plot([x], [r["success_rate"]], label=r["label"], **point)
             ax_r.plot([x], [-r["cost_mean"]], label=r["label"], **point)
-            table.append([r["label"], _fmt(x, 0), r["success_rate"], -r["cost_mean"],
-                          f"{r['episodes']} episodes"])
+            table.append([r["label"], _fmt(before, 0), _fmt(r["data_steps_mean"], 0),
+                          r["success_rate"], -r["cost_mean"], f"{r['episodes']} episodes"])
         for ax, ylabel in ((ax_s, "success rate"), (ax_r, "return (= minus cost)")):
             ax.set_xscale("log")
-            ax.set_xlabel("env steps of data used")
+            ax.set_xlabel("env steps of interaction (MPC: before success; RL: training)")
             ax.set_ylabel(ylabel)
             ax.grid(alpha=0.3)
         ax_r.set_yscale("symlog", linthresh=10)
@@ -832,8 +839,10 @@ def section_sample_efficiency(ctx: Context, exp: Experiment) -> list[str]:
         fig.tight_layout()
         name = _save(fig, ctx.out_dir, f"{exp.name}_sample_efficiency_{env}_{scenario}.png")
         lines += ["", f"![{env} sample efficiency]({name})", ""]
-        lines += markdown_table(["controller", "env steps used", "success rate", "mean return",
-                                 "evaluated"], table, ["---", "---:", "---:", "---:", "---"])
+        lines += markdown_table(["controller", "env steps of interaction before success",
+                                 "env steps of data used", "success rate", "mean return",
+                                 "evaluated"], table,
+                                ["---", "---:", "---:", "---:", "---:", "---"])
     return lines
 
 
