@@ -49,6 +49,7 @@ CELLS: dict[str, tuple[str, str, dict[str, Any]]] = {
     "cartpole-r0.1-down": ("cartpole", "online", {"randomize": 0.1, "data": "own"}),
     "quadrotor": ("quadrotor", "online", {}),
     "quadrotor-r0.1-ddiff": ("quadrotor", "online", {"randomize": 0.1, "data": "diff"}),
+    "quadrotor-perturbed": ("quadrotor", "online", {"start": "perturbed"}),
     "dubins": ("dubins", "paper", {}),
     "dubins-wear": ("dubins", "paper-wear", {}),
 }
