@@ -900,35 +900,72 @@ def test_the_recovery_projection_reaches_a_feasible_point_and_leaves_a_kkt_point
     assert np.max(np.abs(w - w0)) < 2.0
 
 
-def test_a_rejected_step_is_recovered_within_the_budget_and_counted():
-    """A step whose violation is too large: with ``recovery_iterations`` its plan is the
-    recovered point (within tolerance by the OCP's own constraints), the health counts it as
-    recovered and not rejected; without a budget the same step is rejected (a converged
-    solve)."""
+def _perturbed_rti_step(budget: int, scale: float = 0.05, patch=None):
+    """The RTI step of a cart pole ``gp`` closed loop 40 periods in (the pole up, the plan
+    settled), from that plan perturbed at its node states by ``scale`` x a fixed normal draw
+    (a plan the model no longer fits) at the plan's own X(t0); ``patch(planner)`` may wrap
+    its functions first. Returns the plan, the record, the planner and the counters'
+    increments over this one step."""
     env = gym.make(CART, scenario="gp")
     obs, _ = env.reset(seed=0)
-    results = {}
-    for budget in (0, 3):
-        agent = PseudospectralMPC.from_env(env, scheme=mpc_module.RTI(
-            recovery_iterations=budget))
-        agent.act(obs)
-        planner = agent.planner
-        previous = agent.plan
-        w_prev = previous.solution.nlp_x.copy()
-        ix = planner.ocp.node_indices()[0][1:].ravel()
-        w_prev[ix] += 0.02 * np.random.default_rng(1).standard_normal(ix.size)
-        previous = dataclasses.replace(previous, solution=dataclasses.replace(
-            previous.solution, nlp_x=w_prev))  # a plan the model no longer fits
-        x1 = np.asarray(obs, float) + 0.01
-        plan, record = planner.plan(x1, previous, previous.step + planner.mesh.held_periods)
-        agent._count(dict(record, replanned=True))
-        results[budget] = (plan, record, agent.health(), planner)
-    _, rec0, h0, _ = results[0]
-    assert rec0["status"].startswith("RTI rejected") and h0["rti_rejected"] == 1
-    plan3, rec3, h3, planner = results[3]
+    agent = PseudospectralMPC.from_env(env, scheme=mpc_module.RTI(recovery_iterations=budget))
+    for _ in range(40):
+        obs, *_ = env.step(agent.act(obs))
+    agent.act(obs)
+    planner, previous = agent.planner, agent.plan
+    w_prev = previous.solution.nlp_x.copy()
+    ix = planner.ocp.node_indices()[0][1:].ravel()
+    w_prev[ix] += scale * np.random.default_rng(1).standard_normal(ix.size)
+    previous = dataclasses.replace(previous, solution=dataclasses.replace(
+        previous.solution, nlp_x=w_prev))
+    x1 = w_prev[:obs.size].copy()
+    if patch is not None:
+        patch(planner)
+    before = (planner.n_rti_recovered, planner.n_rti_rejected, planner.n_recovery_iterations)
+    plan, record = planner.plan(x1, previous, previous.step + planner.mesh.held_periods)
+    after = (planner.n_rti_recovered, planner.n_rti_rejected, planner.n_recovery_iterations)
+    counts = dict(zip(("recovered", "rejected", "iterations"),
+                      (b - a for a, b in zip(before, after, strict=True)), strict=True))
+    return plan, record, planner, counts, x1
+
+
+def test_a_rejected_step_is_recovered_within_the_budget_and_counted():
+    """A step whose violation is too large: with ``recovery_iterations`` its plan is the
+    recovered point (within tolerance by the OCP's own constraints), counted as recovered
+    and not rejected; without a budget the same step is rejected (a converged solve)."""
+    _, rec0, _, counts0, _ = _perturbed_rti_step(0)
+    assert rec0["status"].startswith("RTI rejected") and counts0["rejected"] == 1
+    plan3, rec3, planner, counts3, x1 = _perturbed_rti_step(3)
     assert rec3["status"].startswith("RTI recovered"), rec3["status"]
-    assert h3["rti_recovered"] == 1 and h3["rti_rejected"] == 0
-    assert h3["rti_recovery_iterations"] == rec3["iterations"] - 1 >= 1
+    assert counts3["recovered"] == 1 and counts3["rejected"] == 0
+    assert counts3["iterations"] == rec3["iterations"] - 1 >= 1
     P = planner.planning.param_values()
     assert _violation(planner, plan3.solution.nlp_x, P) <= planner.max_violation
     np.testing.assert_allclose(plan3.solution.nlp_x[:x1.size], x1)
+
+
+def test_a_feasible_point_that_no_sqp_iteration_preceded_is_rejected_not_recovered():
+    """The recovery's feasible point alone is never the plan: with a budget of one QP solve
+    the projection reaches feasibility (by the OCP's own constraints) but no SQP iteration
+    (the objective's share) follows, and the step is rejected (a converged solve); with two,
+    the SQP iteration from that point recovers the same step."""
+    projected: list[float] = []
+
+    def patch(planner):
+        real_project = planner._project_outputs
+
+        def project(x, w):
+            out = real_project(x, w)
+            projected.append(_violation(planner, np.asarray(out[0]).ravel(),
+                                        planner.planning.param_values()))
+            return out
+
+        planner._project_outputs = project
+
+    _, record, planner, counts, _ = _perturbed_rti_step(1, patch=patch)
+    assert len(projected) == 1 and projected[0] <= planner.max_violation
+    assert record["status"].startswith("RTI rejected"), record["status"]
+    assert counts == {"recovered": 0, "rejected": 1, "iterations": 0}
+    _, record, _, counts, _ = _perturbed_rti_step(2)
+    assert record["status"] == "RTI recovered (2)", record["status"]
+    assert counts == {"recovered": 1, "rejected": 0, "iterations": 2}

@@ -89,6 +89,34 @@ def test_recipes_and_schemes_compose():
         make_mpc(gym.make("Pendulum-v1"))
 
 
+def test_a_recipe_takes_its_own_levenberg_marquardt_where_the_system_tunes_one():
+    """The Dubins tuning damps the robust recipe's RTI QP more than the other recipes'
+    (``RTITuning.recipe_levenberg_marquardt``); an explicit ``RTI(levenberg_marquardt=...)``
+    or the flat keyword wins; the converged scheme has none; a system without a recipe entry
+    gives every recipe the system's value."""
+    from gp_agents.mpc import rti_tuning
+
+    tuning = rti_tuning("dubins")
+    env = _env("dubins")
+    mu = tuning.recipe_levenberg_marquardt["robust"]
+    assert mu != tuning.levenberg_marquardt
+    for scheme in ("rti", "rti-split", RTI(split=True)):
+        assert make_mpc(env, "robust", scheme=scheme).levenberg_marquardt == mu
+        assert make_mpc(env, "paper", scheme=scheme).levenberg_marquardt \
+            == tuning.levenberg_marquardt
+    assert make_mpc(env, "robust", scheme=RTI(levenberg_marquardt=0.5)) \
+        .levenberg_marquardt == 0.5
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        assert make_mpc(env, "robust", scheme="rti", levenberg_marquardt=0.25) \
+            .levenberg_marquardt == 0.25
+    assert make_mpc(env, "robust").levenberg_marquardt is None
+    cart = _env("cartpole")
+    assert not rti_tuning("cartpole").recipe_levenberg_marquardt
+    assert make_mpc(cart, "robust", scheme="rti").levenberg_marquardt \
+        == rti_tuning("cartpole").levenberg_marquardt
+
+
 # ----------------------------------------------------------------------------- settings
 def _probe(agent: PseudospectralMPC) -> dict:
     """What a setting can change, measured on the built controller: the first actions and

@@ -190,7 +190,10 @@ def test_planning_defaults_are_checked(kwargs, message):
     ({"levenberg_marquardt": -1e-3}, "levenberg_marquardt"),
     ({"levenberg_marquardt": np.inf}, "levenberg_marquardt"),
     ({"learned_term": ""}, "learned_term"), ({"learned_term": None}, "learned_term"),
-    ({"qp_solver": ""}, "qp_solver")])
+    ({"qp_solver": ""}, "qp_solver"),
+    ({"recipe_levenberg_marquardt": {"robust": -1.0}}, "recipe_levenberg_marquardt"),
+    ({"recipe_levenberg_marquardt": {"robust": np.nan}}, "recipe_levenberg_marquardt"),
+    ({"recipe_levenberg_marquardt": {3: 1.0}}, "recipe_levenberg_marquardt")])
 def test_rti_tuning_is_checked(kwargs, message):
     from gp_agents.mpc import RTITuning
 

@@ -8,8 +8,9 @@ Run (one core; resumable: finished episodes in ``results.jsonl`` are skipped)::
 Question: how many of the robust recipe's split-RTI steps (``make_mpc(env, "robust",
 scheme="rti-split")``) does the safety net reject, and how many of those can further
 iterations recover inside the real-time scheme (``RTI.recovery_iterations``: feasibility
-projections from the step's point, then one SQP step from the feasible point; an iteration
-budget, no wall-clock limit) before the converged fallback?
+projections while the point violates, SQP iterations from feasible points, the step recovered
+by an SQP iteration within tolerance or the feasible projection of one; an iteration budget, no
+wall-clock limit) before the converged fallback?
 
 Each budget is set through the public per-system tuning (:func:`gp_agents.mpc.
 register_rti_tuning`, the field ``recovery_iterations``) in this process, and every episode
@@ -49,6 +50,7 @@ CELLS: dict[str, tuple[str, str, dict[str, Any]]] = {
     "cartpole-r0.1-down": ("cartpole", "online", {"randomize": 0.1, "data": "own"}),
     "quadrotor": ("quadrotor", "online", {}),
     "quadrotor-r0.1-ddiff": ("quadrotor", "online", {"randomize": 0.1, "data": "diff"}),
+    "quadrotor-perturbed": ("quadrotor", "online", {"start": "perturbed"}),
     "dubins": ("dubins", "paper", {}),
     "dubins-wear": ("dubins", "paper-wear", {}),
 }

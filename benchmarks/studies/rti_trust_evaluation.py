@@ -1,16 +1,22 @@
-"""The evaluation of the trusted RTI on robustness cells (issue 43, acceptance): a per-cell table
-of the split RTI of the robust recipe against the converged robust recipe, generated from the
-engine's own ``summary.csv`` of each cell's run.
+"""The evaluation of the trusted RTI on the robustness preset (issue 43, acceptance): per cell,
+the split RTI of the robust recipe against the converged robust recipe, generated from the
+engine's own ``summary.csv`` of one run of the preset with both controllers.
 
-Run the cells (one worker; resumable: reruns skip finished trials), then this to write
-``benchmarks/results/rti-trust-robustness/report.md``::
+Run the preset's cells for the two controllers (one worker; resumable: a rerun skips finished
+trials), then this to write ``rti_trust.md`` next to the run's own report::
 
-    python -m benchmarks --controllers robust-mpc@rti-split,robust-mpc --envs cartpole \
-        --scenarios online [--randomize 0.1 --data same|diff] --seeds 200-219 --workers 1 \
-        --out benchmarks/results/rti-trust-robustness/<cell>
+    python -m benchmarks --preset robustness \\
+        --controllers ssgp-mpc-rti-parametric-split,ssgp-mpc-linearized-parametric \\
+        --workers 1 --out benchmarks/results/robustness-rti-trust
     python -m benchmarks.studies.rti_trust_evaluation
 
-(:data:`CELLS` lists each cell directory with its command's cell options.)
+(The preset names the robust recipe's split RTI ``ssgp-mpc-rti-parametric-split`` and its
+converged MPC ``ssgp-mpc-linearized-parametric``, the frozen aliases of ``robust-mpc@rti-split``
+and ``robust-mpc``.)
+
+The acceptance, per cell: the RTI succeeds on as many seeds as the converged MPC, every
+quadrotor seed ends within 1 cm, and at most :data:`MAX_REJECTED` of its RTI steps are
+rejected (replaced by a converged solve).
 """
 
 from __future__ import annotations
@@ -22,73 +28,97 @@ from collections.abc import Sequence
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
-DEFAULT_DIR = ROOT / "benchmarks" / "results" / "rti-trust-robustness"
-CELLS = {
-    "cartpole-default": "--envs cartpole --scenarios online",
-    "cartpole-r0.1": "--envs cartpole --scenarios online --randomize 0.1 --data same",
-    "cartpole-r0.1_ddiff": "--envs cartpole --scenarios online --randomize 0.1 --data diff",
-    "quadrotor-default": "--envs quadrotor --scenarios online",
-    "quadrotor-r0.1_ddiff": "--envs quadrotor --scenarios online --randomize 0.1 --data diff",
-    "dubins-default": "--envs dubins --scenarios paper",
-    "dubins-paper-wear": "--envs dubins --scenarios paper-wear",
-}
-"""Evaluated cells: directory -> the cell's options of ``python -m benchmarks``."""
-RTI, CONVERGED = "robust-mpc@rti-split", "robust-mpc"
+DEFAULT_DIR = ROOT / "benchmarks" / "results" / "robustness-rti-trust"
+RTI, CONVERGED = "ssgp-mpc-rti-parametric-split", "ssgp-mpc-linearized-parametric"
+MAX_REJECTED = 0.10
+"""The largest fraction of rejected RTI steps a cell may have."""
+MAX_QUADROTOR_ERROR = 0.01
+"""The largest final position error (m) of a quadrotor seed."""
 
 
-def _f(value: str, digits: int = 3) -> str:
+def _f(value: float, digits: int = 3) -> str:
+    return "-" if not math.isfinite(value) else f"{value:.{digits}g}"
+
+
+def _num(row: dict[str, str], key: str) -> float:
     try:
-        v = float(value)
-    except (TypeError, ValueError):
-        return value or "-"
-    if math.isnan(v):
-        return "-"
-    return f"{v:.{digits}g}"
+        return float(row.get(key, "nan"))
+    except ValueError:
+        return math.nan
+
+
+def cells(summary: Path) -> list[dict[str, object]]:
+    """One record per (env, scenario, cell) that has both controllers (the default initial
+    data; the preset's other sample counts are the converged recipe's alone)."""
+    rows = [r for r in csv.DictReader(summary.open())
+            if r["controller"] in (RTI, CONVERGED) and r["status"] == "ok"]
+    groups: dict[tuple[str, str, str, str], dict[str, dict[str, str]]] = {}
+    for r in rows:
+        groups.setdefault((r["env"], r["scenario"], r["cell"], r["n_init"]), {})[
+            r["controller"]] = r
+    out = []
+    for (env, scenario, cell, n_init), pair in groups.items():
+        if set(pair) != {RTI, CONVERGED}:
+            continue
+        rti, conv = pair[RTI], pair[CONVERGED]
+        n_rti, n_conv = int(rti["episodes"]), int(conv["episodes"])
+        s_rti = round(_num(rti, "success_rate") * n_rti)
+        s_conv = round(_num(conv, "success_rate") * n_conv)
+        rejected = _num(rti, "rti_rejected_fraction")
+        err = _num(rti, "final_position_error_max")
+        same = s_rti >= s_conv and n_rti == n_conv
+        within = env != "quadrotor" or (math.isfinite(err) and err <= MAX_QUADROTOR_ERROR)
+        out.append(dict(
+            env=env, scenario=scenario, cell=cell, n_init=n_init, episodes=n_rti,
+            success_rti=s_rti, success_converged=s_conv, rejected=rejected,
+            rti_steps=int(_num(rti, "rti_steps")), recovered=int(_num(rti, "rti_recovered")),
+            n_rejected=int(_num(rti, "rti_rejected")), error_rti=err,
+            error_converged=_num(conv, "final_position_error_max"),
+            cost_rti=_num(rti, "cost_mean"), cost_converged=_num(conv, "cost_mean"),
+            failures=int(_num(rti, "solver_failures")),
+            met=same and within and rejected <= MAX_REJECTED))
+    return out
 
 
 def write(directory: Path) -> Path:
-    lines = ["# Trusted RTI on robustness cells (issue 43)", "",
-             "Generated by `benchmarks/studies/rti_trust_evaluation.py` from each cell's "
-             "`summary.csv` (the benchmark engine's). Controllers: the robust recipe's split "
-             f"RTI (`{RTI}`, RTI recovery budget 3) and the converged robust recipe "
-             f"(`{CONVERGED}`); evaluation seeds 200-219 (never used for tuning; the tuning "
-             "study used 0-9).", "",
-             "| cell | controller | episodes | success | max final pos. err. (m) | RTI steps | "
-             "recovered | rejected | rejected % | solver failures | cost mean |",
-             "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
-    missing = []
-    for cell, options in CELLS.items():
-        path = directory / cell / "summary.csv"
-        if not path.exists():
-            missing.append(f"- `{cell}`: not run (`python -m benchmarks --controllers "
-                           f"{RTI},{CONVERGED} {options} --seeds 200-219 --workers 1 --out "
-                           f"{directory.relative_to(ROOT) / cell}`)")
-            continue
-        rows = {r["controller"]: r for r in csv.DictReader(path.open())}
-        for name in (RTI, CONVERGED):
-            r = rows.get(name)
-            if r is None:
-                continue
-            rti = name == RTI
-            frac = r.get("rti_rejected_fraction", "")
-            lines.append(
-                f"| {cell} | {name} | {r['episodes']} "
-                f"| {round(float(r['success_rate']) * int(r['episodes']))}/{r['episodes']} "
-                f"| {_f(r['final_position_error_max'])} "
-                f"| {r['rti_steps'] if rti else '-'} | {r['rti_recovered'] if rti else '-'} "
-                f"| {r['rti_rejected'] if rti else '-'} "
-                f"| {_f(str(100 * float(frac)), 2) if rti and frac not in ('', 'nan') else '-'} "
-                f"| {r['solver_failures']} | {_f(r['cost_mean'], 4)} |")
-    if missing:
-        lines += ["", "Cells not run yet:", "", *missing]
-    out = directory / "report.md"
+    """Write ``rti_trust.md`` in ``directory`` from its ``summary.csv``; returns its path."""
+    table = cells(directory / "summary.csv")
+    lines = [
+        "# Trusted RTI on the robustness preset (issue 43)", "",
+        "Generated by `benchmarks/studies/rti_trust_evaluation.py` from this run's "
+        "`summary.csv` (the benchmark engine's). Controllers: the robust recipe's split RTI "
+        f"(`{RTI}` = `robust-mpc@rti-split`) and the converged robust recipe (`{CONVERGED}` = "
+        "`robust-mpc`); the preset's evaluation seeds (200-219, Dubins 200-249; never used for "
+        "tuning). *Met*: the RTI succeeds on as many seeds as the converged MPC, every "
+        f"quadrotor seed ends within {MAX_QUADROTOR_ERROR * 100:g} cm, and at most "
+        f"{MAX_REJECTED:.0%} of its RTI steps were rejected (replaced by a converged solve); "
+        "*recovered*: steps whose violation the recovery brought within tolerance.", "",
+        "| env | scenario | cell | success RTI / converged | RTI steps | recovered | rejected "
+        "| rejected % | max final pos. err. RTI / converged (m) | cost mean RTI / converged "
+        "| solver failures (RTI) | met |",
+        "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|"]
+    for c in table:
+        lines.append(
+            f"| {c['env']} | {c['scenario']} | {c['cell']} "
+            f"| {c['success_rti']}/{c['episodes']} / {c['success_converged']}/{c['episodes']} "
+            f"| {c['rti_steps']} | {c['recovered']} | {c['n_rejected']} "
+            f"| {_f(100 * float(c['rejected']), 2)} "
+            f"| {_f(float(c['error_rti']))} / {_f(float(c['error_converged']))} "
+            f"| {_f(float(c['cost_rti']), 4)} / {_f(float(c['cost_converged']), 4)} "
+            f"| {c['failures']} | {'yes' if c['met'] else '**no**'} |")
+    met = sum(bool(c["met"]) for c in table)
+    worst = max((float(c["rejected"]) for c in table), default=math.nan)
+    lines += ["", f"Cells meeting the acceptance: {met} of {len(table)}; the largest rejected "
+              f"fraction of a cell: {_f(100 * worst, 2)}%."]
+    out = directory / "rti_trust.md"
     out.write_text("\n".join(lines) + "\n")
     return out
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--dir", type=Path, default=DEFAULT_DIR)
+    parser.add_argument("--dir", type=Path, default=DEFAULT_DIR,
+                        help="the preset run's directory (its summary.csv)")
     args = parser.parse_args(argv)
     print(f"report: {write(args.dir)}")
     return 0

@@ -25,6 +25,7 @@ keyword. The learning recipes return an unfitted agent: ``agent.pretrain(data)``
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import gymnasium as gym
@@ -32,8 +33,9 @@ import gymnasium as gym
 import gp_envs
 from gp_agents.learners.recipes import online_ssgp, parametric_ssgp
 from gp_agents.mpc.blackbox import BlackBoxModel
-from gp_agents.mpc.controller import PseudospectralMPC
+from gp_agents.mpc.controller import LEGACY_SETTINGS, PseudospectralMPC
 from gp_agents.mpc.settings import RTI, Converged, Residual, scheme_settings
+from gp_agents.mpc.tuning import rti_tuning
 from gp_envs.model import ControlModel
 
 __all__ = ["DEFAULT_RECIPE", "RECIPES", "OracleModel", "make_mpc", "recipe_settings"]
@@ -101,6 +103,19 @@ def recipe_settings(recipe: str, scheme: str | Converged | RTI | None = None
     return out
 
 
+def _recipe_scheme(recipe: str, env: gym.Env, scheme: str | Converged | RTI,
+                   overrides: dict[str, Any]) -> str | Converged | RTI:
+    """``scheme`` with the system's Levenberg-Marquardt ``mu`` for ``recipe``
+    (:attr:`~gp_agents.mpc.tuning.RTITuning.recipe_levenberg_marquardt`) when it is a
+    real-time iteration that sets none and no override names one; else ``scheme`` as given."""
+    resolved = scheme_settings(scheme)
+    if (not isinstance(resolved, RTI) or resolved.levenberg_marquardt is not None
+            or any(LEGACY_SETTINGS.get(k, "").startswith("scheme=") for k in overrides)):
+        return scheme
+    mu = rti_tuning(env.unwrapped.nominal_model).recipe_levenberg_marquardt.get(recipe)
+    return scheme if mu is None else dataclasses.replace(resolved, levenberg_marquardt=mu)
+
+
 def make_mpc(env: gym.Env, recipe: str = DEFAULT_RECIPE, *,
              scheme: str | Converged | RTI | None = None, **overrides: Any) -> PseudospectralMPC:
     """The MPC of recipe ``recipe`` (:data:`RECIPES`) for ``env``'s nominal model and task.
@@ -135,6 +150,7 @@ def make_mpc(env: gym.Env, recipe: str = DEFAULT_RECIPE, *,
         raise ValueError(f"recipe {recipe!r} learns nothing: it takes no learner (the learning "
                          f"recipes: 'robust', 'paper', 'blackbox')")
     settings.update(overrides)
+    settings["scheme"] = _recipe_scheme(recipe, env, settings["scheme"], overrides)
     learner = settings.pop("learner")
     source = (OracleModel(env) if recipe == "oracle" else BlackBoxModel(env)
               if recipe == "blackbox" else None)

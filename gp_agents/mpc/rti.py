@@ -36,8 +36,11 @@ plan violates the NLP's constraints by more than ``max_violation`` (defects in s
 path constraints in theirs, infinity norm) is replaced by a converged solve from the same
 shifted plan and the previous step's multipliers (the QP's, an SQP step's estimate of the
 NLP's) with IPOPT's warm-start options (the :class:`~gp_agents.mpc.planner.Planner`'s solve,
-with its retry and fallback to the previous plan).
-Every such step is counted (``n_rti_rejected``). No wall-clock limit anywhere.
+with its retry and fallback to the previous plan). Before that, with a recovery budget
+(``recovery_iterations``), the step may be recovered inside the real-time scheme by
+feasibility projections and SQP iterations (:meth:`RTIPlanner._recover`).
+Every such step is counted (``n_rti_rejected``, ``n_rti_recovered``). No wall-clock limit
+anywhere.
 """
 
 from __future__ import annotations
@@ -501,15 +504,17 @@ class RTIPlanner(Planner):
             self.n_qp_fallbacks += int(qp_iterations[0] == 0)
         self.n_rti_steps += 1
         recovered = 0
-        if (np.isfinite(violation) and violation > self.max_violation
-                and self.recovery_iterations and np.all(np.isfinite(w_new))):
+        attempted = bool(np.isfinite(violation) and violation > self.max_violation
+                         and self.recovery_iterations and np.all(np.isfinite(w_new)))
+        if attempted:
             assert out is not None
             began = time.perf_counter()
             out, recovered, error = self._recover(x, out, error)
             w_new, _, violation = out[:3]  # the step's multipliers stay the estimate
             violation = float(violation[0])
             elapsed += time.perf_counter() - began
-        if not (np.all(np.isfinite(w_new)) and violation <= self.max_violation):
+        if not (np.all(np.isfinite(w_new)) and violation <= self.max_violation) or (
+                attempted and not recovered):
             self.n_rti_rejected += 1
             plan, record = super().plan(x, previous, step)
             record["solve_time"] += elapsed
@@ -528,43 +533,52 @@ class RTIPlanner(Planner):
     def _recover(self, x: np.ndarray, out: tuple[np.ndarray, ...], error: float
                  ) -> tuple[tuple[np.ndarray, ...], int, float]:
         """Recover a step ``out`` whose constraint violation is too large inside the real-time
-        scheme: feasibility projections from its point (:meth:`_projection_step`: X(t0) the
-        measured state ``x``, the learned term re-expanded at each point, the QP without the
-        objective, i.e. minimum-norm Newton steps on the linearized constraints), until the
-        violation is within ``max_violation``, or a projection fails to contract it by
-        :data:`RECOVERY_CONTRACTION`, or :attr:`recovery_iterations` are spent
-        (an iteration count, never a time). From the feasible point it reaches, one SQP
-        iteration (the objective's share, the learned term re-expanded there) replaces it when
-        that stays within tolerance (the projection alone lost a Dubins tuning episode that
-        the projection and this step reach, study ``rti_recovery``).
+        scheme, within :attr:`recovery_iterations` QP solves (an iteration count, never a
+        time): while the point violates, a feasibility projection (:meth:`_projection_step`:
+        X(t0) the measured state ``x``, the learned term re-expanded there, the QP without the
+        objective, i.e. a minimum-norm Newton step on the linearized constraints), which must
+        contract the violation by :data:`RECOVERY_CONTRACTION` (else the linearized
+        constraints cannot be met near the step: the converged fallback); from a feasible
+        point, an SQP iteration (the objective's share, the learned term re-expanded there).
+        The step is recovered at the first SQP iteration that ends within tolerance; one that
+        does not is projected again, and when the budget ends there, that feasible projection
+        of an SQP iteration is the recovered point (an SQP step with its feasibility
+        correction). A feasible point that no SQP iteration preceded is never the plan: it
+        forgets the objective, and its action can be far from any plan's (a quadrotor from a
+        perturbed start flipped over on two such points; study ``rti_recovery``).
 
         Returns:
-            The recovered point's outputs (:data:`STEP_OUTPUTS`; the last contracting
-            projection's, ``out`` if none contracted), the iterations taken (projections and
-            the SQP step) when the violation ends within tolerance (0 otherwise: the caller
-            rejects the step on the violation) and the expansion error at that point
-            (``error`` unchanged without a learned term).
+            The outputs (:data:`STEP_OUTPUTS`) of the last point reached, the QP solves taken
+            when it is recovered (0 otherwise: the caller rejects the step) and the expansion
+            error at the recovered point (``error`` unchanged without a learned term, or when
+            not recovered).
         """
         lam_g = np.asarray(out[3]).ravel()
-        violation, k = float(out[2][0]), 0
-        while k < self.recovery_iterations and violation > self.max_violation:
+        violation, k, objective = float(out[2][0]), 0, False
+        while k < self.recovery_iterations:
+            if violation > self.max_violation:  # a projection towards feasibility
+                try:
+                    nxt = self._project_outputs(x, np.asarray(out[0]).ravel())
+                except RuntimeError:  # the QP plugin raised
+                    break
+                k += 1
+                now = float(nxt[2][0])
+                if not (np.all(np.isfinite(nxt[0])) and now < RECOVERY_CONTRACTION * violation):
+                    break  # no Newton-like contraction: the linearized constraints cannot be met
+                out, violation = nxt, now
+                continue
+            # from a feasible point: the SQP iteration (the objective's share)
             try:
-                nxt = self._project_outputs(x, np.asarray(out[0]).ravel())
-            except RuntimeError:  # the QP plugin raised
+                step = self._iterate_outputs(x, np.asarray(out[0]).ravel(), lam_g)
+            except RuntimeError:
                 break
-            now = float(nxt[2][0])
-            if not (np.all(np.isfinite(nxt[0])) and now < RECOVERY_CONTRACTION * violation):
-                break  # no Newton-like contraction: the linearized constraints cannot be met
-            out, violation, k = nxt, now, k + 1
-        if violation > self.max_violation:
-            return out, 0, error
-        error = float(out[6][0]) if len(out) > 6 else error
-        # the SQP step from the feasible point (the objective's share), kept when it stays
-        # within tolerance
-        try:
-            step = self._iterate_outputs(x, np.asarray(out[0]).ravel(), lam_g)
-        except RuntimeError:
-            return out, k, error
-        if np.all(np.isfinite(step[0])) and float(step[2][0]) <= self.max_violation:
-            return step, k + 1, (float(step[6][0]) if len(step) > 6 else error)
-        return out, k, error
+            k += 1
+            if not np.all(np.isfinite(step[0])):
+                break
+            out, violation, objective = step, float(step[2][0]), True
+            lam_g = np.asarray(step[3]).ravel()
+            if violation <= self.max_violation:
+                break
+        if objective and violation <= self.max_violation:
+            return out, k, (float(out[6][0]) if len(out) > 6 else error)
+        return out, 0, error

@@ -95,12 +95,13 @@ class RTI:
             (:func:`gp_agents.mpc.tuning.rti_tuning`).
         levenberg_marquardt: ``mu`` >= 0 on the QP Hessian's diagonal; None: the system's
             tuning.
-        recovery_iterations: further SQP iterations (an iteration budget, >= 0) a step whose
+        recovery_iterations: further QP solves (an iteration budget, >= 0) a step whose
             constraint violation is too large may take inside the real-time scheme, from the
             step's own point with the measured X(t0) and the learned term re-expanded at each
-            iterate, before it is rejected and replaced by the converged fallback
-            (:meth:`~gp_agents.mpc.rti.RTIPlanner._recover`); 0: reject at once. None: the
-            system's tuning.
+            iterate: feasibility projections and SQP iterations, the step recovered only by
+            an SQP iteration within tolerance, else rejected and replaced by the converged
+            fallback (:meth:`~gp_agents.mpc.rti.RTIPlanner._recover`); 0: reject at once.
+            None: the system's tuning.
         fallback: the converged solves (cold start, rejected steps); by default warm-started
             with the previous multipliers.
     """

@@ -20,15 +20,19 @@ are in the documentation):
 - Levenberg-Marquardt ``mu``: 0.01 on the Dubins vehicle, where the plain step of the split SSGP
   RTI alternates between turning left and right near ``v = 0`` (0.01 reaches the goal on every
   tuning seed and cuts the rejected steps, 0.03 loses a nominal episode), and on the cart pole
-  (fewer rejected SSGP RTI steps at the same outcomes). Other systems: 0.
+  (fewer rejected SSGP RTI steps at the same outcomes). Other systems: 0. The robust recipe on
+  the Dubins vehicle: 1, which removes its rejected steps (the controls flipping from bound to
+  bound in the first seconds) at the converged recipe's cost; the nominal and black-box
+  recipes, whose plans must be corrected more at every period, lose tuning seeds from 0.3 on
+  (``RTITuning.recipe_levenberg_marquardt``).
 - Learned term: the residual linearized per node, except on the quadrotor, where the entries on
   the nominal Jacobian's pattern only (the nominal QP's sparsity) give the lower split-RTI
   latency at the same outcomes.
 
-- Recovery iterations (a rejected step's feasibility projections and SQP step before the
-  converged fallback): 3, which removes most of the cart pole's and the quadrotor's rejected
-  steps at the same outcomes; 0 on the Dubins vehicle, where recovered plans cost clearly more
-  than converged ones (decision record ``docs/studies/rti_recovery.md``, tuning seeds).
+- Recovery iterations (a rejected step's feasibility projections and SQP iterations before
+  the converged fallback): 3 on every system, which keeps every system's rejected steps within
+  a few percent at the converged recipe's outcomes (decision record
+  ``docs/studies/rti_recovery.md``, tuning seeds).
 
 A system without an entry gets :class:`RTITuning`'s defaults; a model of no registered system at
 all gets the plain ``"osqp"`` QP solver.
@@ -36,7 +40,8 @@ all gets the plain ``"osqp"`` QP solver.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -47,7 +52,7 @@ __all__ = ["RTI_TUNING", "RTITuning", "register_rti_tuning", "rti_tuning"]
 
 
 RECOVERY_ITERATIONS = 3
-"""Recovery iterations of every system's RTI (the study ``rti_recovery``)."""
+"""Recovery QP solves of every system's RTI (the study ``rti_recovery``)."""
 
 
 @dataclass(frozen=True)
@@ -64,12 +69,18 @@ class RTITuning:
         recovery_iterations: further SQP iterations a step with a too large constraint
             violation may take before the converged fallback (:class:`~gp_agents.mpc.settings.
             RTI`'s ``recovery_iterations``).
+        recipe_levenberg_marquardt: ``mu`` of the named recipes of :func:`gp_agents.make_mpc`
+            where it differs from ``levenberg_marquardt`` (recipe name -> ``mu``): a model
+            close to the truth moves its plan little from one period to the next and takes a
+            heavier damping that a wrong model, whose plan must be corrected at every
+            period, does not.
     """
 
     qp_solver: str = "active-set:proxqp"
     levenberg_marquardt: float = 0.0
     learned_term: str = "linearized"
     recovery_iterations: int = RECOVERY_ITERATIONS
+    recipe_levenberg_marquardt: Mapping[str, float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if not (isinstance(self.qp_solver, str) and self.qp_solver):
@@ -81,6 +92,10 @@ class RTITuning:
         if isinstance(self.recovery_iterations, bool) or int(self.recovery_iterations) < 0:
             raise ValueError(f"RTITuning: recovery_iterations must be an int >= 0, got "
                              f"{self.recovery_iterations!r}")
+        for recipe, mu in self.recipe_levenberg_marquardt.items():
+            if not (isinstance(recipe, str) and np.isfinite(mu) and mu >= 0):
+                raise ValueError(f"RTITuning: recipe_levenberg_marquardt must map recipe names "
+                                 f"to finite numbers >= 0, got {recipe!r}: {mu!r}")
         if not (isinstance(self.learned_term, str) and self.learned_term):
             raise ValueError(f"RTITuning: learned_term must be a learned-term name, got "
                              f"{self.learned_term!r}")
@@ -90,7 +105,7 @@ RTI_TUNING: dict[str, RTITuning] = {
     "cartpole": RTITuning(levenberg_marquardt=1e-2),
     "quadrotor": RTITuning(learned_term="linearized-pattern"),
     "dubins": RTITuning(qp_solver="active-set:piqp", levenberg_marquardt=1e-2,
-                        recovery_iterations=0),
+                        recipe_levenberg_marquardt={"robust": 1.0}),
     "pendulum": RTITuning(qp_solver="active-set:piqp"),
 }
 """The registered tuning by system name (the built-in systems'; module docstring)."""
