@@ -330,18 +330,23 @@ def test_the_zero_order_gain_ratio_and_its_tables(tmp_path: Path) -> None:
 
 def test_the_levenberg_marquardt_sweep_counts_what_its_episodes_did() -> None:
     """``benchmarks.studies.rti_levenberg_marquardt``: one row per episode, the RTI steps it
-    counts are
-    the planner's (rejected ones among them), the table has a row per recipe and ``mu``; a
-    negative ``mu`` or an unknown recipe is a usage error."""
+    counts are the planner's (rejected ones among them), a converged reference runs once per
+    seed with none, the table has a row per recipe and ``mu``; a negative ``mu``, an unknown
+    recipe or an RTI or non-MPC reference is a usage error."""
     from benchmarks.studies import rti_levenberg_marquardt as lm
 
-    rows = lm.run("dubins", [0.0, 0.01], [0], ["nominal-mpc-rti"], progress=False)
-    assert [(r["mu"], r["seed"]) for r in rows] == [(0.0, 0), (0.01, 0)]
-    assert all(0 <= r["rejected"] <= r["rti_steps"] and r["rti_steps"] > 100 for r in rows)
+    rows = lm.run("dubins", [0.0, 0.01], [0], ["nominal-mpc-rti"], progress=False,
+                  references=["nominal-mpc"])
+    assert [(r["recipe"], r["mu"], r["seed"]) for r in rows] == [
+        ("nominal-mpc", None, 0), ("nominal-mpc-rti", 0.0, 0), ("nominal-mpc-rti", 0.01, 0)]
+    assert rows[0]["rti_steps"] == rows[0]["rejected"] == 0
+    assert all(0 <= r["rejected"] <= r["rti_steps"] and r["rti_steps"] > 100 for r in rows[1:])
     text = lm.table(rows)
     assert "| nominal-mpc-rti | 0 |" in text and "| nominal-mpc-rti | 0.01 |" in text
+    assert "| nominal-mpc | - |" in text
     for argv in (["--mu", "-0.1"], ["--mu", "x"], ["--recipes", "nominal-mpc"],
-                 ["--scenario", "online"]):
+                 ["--scenario", "online"], ["--reference", "nominal-mpc-rti"],
+                 ["--reference", "sac"]):
         with pytest.raises(SystemExit):
             lm.main(argv)
 

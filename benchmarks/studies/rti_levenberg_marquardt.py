@@ -11,16 +11,18 @@ The rule that sets a system's ``levenberg_marquardt``: of the ``mu`` whose SSGP 
 and split) each reach the goal on at least as many tuning seeds as at ``mu = 0`` with a mean
 cost within 2% of theirs at ``mu = 0``, and whose reference RTI (nominal; the cart pole's
 oracle) loses no seed either, the one with the fewest rejected SSGP RTI steps; ties: the
-smaller ``mu``. Run (one core)::
+smaller ``mu``. ``--reference`` adds converged recipes (one episode per seed, no ``mu``) as
+the outcome each RTI is measured against on the same seeds. Run (one core)::
 
     OMP_NUM_THREADS=1 python -m benchmarks.studies.rti_levenberg_marquardt [--system dubins] \\
-        [--mu 0,0.003,0.01,0.03] [--seeds 100-115] [--out FILE.md]
+        [--mu 0,0.003,0.01,0.03] [--seeds 100-115] [--reference robust-mpc] [--out FILE.md]
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+from collections.abc import Sequence
 from pathlib import Path
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
@@ -30,7 +32,13 @@ from tqdm import tqdm
 
 import gp_envs
 from benchmarks.cli import parse_seeds, print_report
-from benchmarks.controllers import RTI_VARIANTS, build_controller, check_env_scenario, make_env
+from benchmarks.controllers import (
+    CONTROLLERS,
+    RTI_VARIANTS,
+    build_controller,
+    check_env_scenario,
+    make_env,
+)
 from benchmarks.studies.rti_qp_solvers import SCENARIOS
 from gp_agents.agent import rollout
 
@@ -41,12 +49,15 @@ TUNING_SEEDS = tuple(range(100, 116))
 
 
 def run(system: str, mus: list[float], seeds: list[int], recipes: list[str],
-        progress: bool = True, scenario: str | None = None) -> list[dict[str, object]]:
+        progress: bool = True, scenario: str | None = None,
+        references: Sequence[str] = ()) -> list[dict[str, object]]:
     """One episode per (recipe, mu, seed) on ``scenario`` (default: the system's
-    :data:`~benchmarks.studies.rti_qp_solvers.SCENARIOS` entry); returns one row per episode."""
-    jobs = [(r, mu, s) for r in recipes for mu in mus for s in seeds]
-    return [dict(mu=mu, **rti_episode(system, recipe, seed, {"levenberg_marquardt": mu},
-                                      scenario))
+    :data:`~benchmarks.studies.rti_qp_solvers.SCENARIOS` entry), and one per (reference,
+    seed) for the converged ``references`` (``mu`` None); returns one row per episode."""
+    jobs = [(r, None, s) for r in references for s in seeds]
+    jobs += [(r, mu, s) for r in recipes for mu in mus for s in seeds]
+    return [dict(mu=mu, **rti_episode(
+        system, recipe, seed, None if mu is None else {"levenberg_marquardt": mu}, scenario))
             for recipe, mu, seed in tqdm(jobs, disable=not progress, desc=f"{system} RTI mu")]
 
 
@@ -56,15 +67,15 @@ def rti_episode(system: str, recipe: str, seed: int,
     """One episode of RTI recipe ``recipe`` on ``system``'s ``scenario`` (default its RTI
     scenario, :data:`~benchmarks.studies.rti_qp_solvers.SCENARIOS`) with env seed ``seed``
     (``settings``: extra :class:`gp_agents.PseudospectralMPC` settings): ``recipe``, ``seed``,
-    ``success``, ``cost``, the RTI steps the safety net ``rejected`` of ``rti_steps``, and the
-    steps with a constraint violation (``contacts``)."""
+    ``success``, ``cost``, the RTI steps the safety net ``rejected`` of ``rti_steps`` (both 0
+    for a converged recipe), and the steps with a constraint violation (``contacts``)."""
     env = make_env(system, scenario or SCENARIOS[system])
     built = build_controller(recipe, env, system, seed, settings=settings)
     episode = rollout(env, built.agent, seed)
     planner = built.agent.planner
     return dict(recipe=recipe, seed=seed, success=bool(episode.infos[-1]["success"]),
-                cost=float(episode.cost), rejected=int(planner.n_rti_rejected),
-                rti_steps=int(planner.n_rti_steps),
+                cost=float(episode.cost), rejected=int(getattr(planner, "n_rti_rejected", 0)),
+                rti_steps=int(getattr(planner, "n_rti_steps", 0)),
                 contacts=int(sum(bool(i["constraint_violation"]) for i in episode.infos)))
 
 
@@ -78,8 +89,9 @@ def table(rows: list[dict[str, object]]) -> str:
         group = [r for r in rows if r["recipe"] == recipe and r["mu"] == mu]
         costs = np.array([r["cost"] for r in group], float)
         missed = [str(r["seed"]) for r in group if not r["success"]]
+        mu_text = "-" if mu is None else format(mu, "g")
         lines.append(
-            f"| {recipe} | {mu:g} | {sum(bool(r['success']) for r in group)}/{len(group)} | "
+            f"| {recipe} | {mu_text} | {sum(bool(r['success']) for r in group)}/{len(group)} | "
             f"{sum(int(r['rejected']) for r in group)} / "
             f"{sum(int(r['rti_steps']) for r in group)} | "
             f"{sum(int(r['contacts']) > 0 for r in group)} | {costs.mean():.2f} | "
@@ -100,6 +112,8 @@ def main(argv: list[str] | None = None) -> None:
                         help="env seeds, 'lo-hi' or comma-separated (default: tuning seeds)")
     parser.add_argument("--recipes", default=",".join(RECIPES),
                         help="comma-separated RTI recipes")
+    parser.add_argument("--reference", default="",
+                        help="comma-separated converged recipes run on the same seeds")
     parser.add_argument("--out", type=Path, help="also write the table (Markdown) here")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
@@ -117,17 +131,24 @@ def main(argv: list[str] | None = None) -> None:
     if unknown or not recipes or not seeds:
         parser.error(f"unknown or no recipe(s) {unknown} or no seeds; RTI recipes: "
                      f"{sorted(RTI_VARIANTS)}")
+    references = [r for r in args.reference.split(",") if r]
+    bad = sorted(r for r in references if r in RTI_VARIANTS or r not in CONTROLLERS
+                 or CONTROLLERS[r].family != "mpc")
+    if bad:
+        parser.error(f"--reference takes converged MPC recipes, not {bad}")
     scenario = args.scenario or SCENARIOS[args.system]
     try:
         check_env_scenario(args.system, scenario)
     except ValueError as err:
         parser.error(str(err))
     rows = run(args.system, mus, seeds, recipes, progress=not args.no_progress,
-               scenario=scenario)
+               scenario=scenario, references=references)
     text = (f"# RTI Levenberg-Marquardt term, {args.system} `{scenario}`\n\n"
             f"`python -m benchmarks.studies.rti_levenberg_marquardt --system {args.system} "
             f"--scenario {scenario} --mu {args.mu} --seeds {','.join(map(str, seeds))} "
-            f"--recipes {','.join(recipes)}` (tuning seeds; one episode per recipe, mu and "
+            f"--recipes {','.join(recipes)}"
+            + (f" --reference {','.join(references)}" if references else "")
+            + "` (tuning seeds; one episode per recipe, mu and "
             f"seed)\n\n{table(rows)}\n")
     print_report(text, args.out)
 
