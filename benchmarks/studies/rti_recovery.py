@@ -48,6 +48,7 @@ CELLS: dict[str, tuple[str, str, dict[str, Any]]] = {
     "cartpole-r0.1": ("cartpole", "online", {"randomize": 0.1}),
     "cartpole-r0.1-ddiff": ("cartpole", "online", {"randomize": 0.1, "data": "diff"}),
     "cartpole-r0.1-down": ("cartpole", "online", {"randomize": 0.1, "data": "own"}),
+    "cartpole-r0.2-ddiff": ("cartpole", "online", {"randomize": 0.2, "data": "diff"}),
     "quadrotor": ("quadrotor", "online", {}),
     "quadrotor-r0.1-ddiff": ("quadrotor", "online", {"randomize": 0.1, "data": "diff"}),
     "quadrotor-perturbed": ("quadrotor", "online", {"start": "perturbed"}),
