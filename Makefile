@@ -8,7 +8,7 @@ export OMP_NUM_THREADS ?= 1
 # README's table are generated from them); gp-bench's own default is
 # ./benchmark-results/<preset>, so these targets pass --out.
 .PHONY: docs bench bench-recommended bench-full bench-acceptance bench-linearized bench-rti bench-compute \
-	bench-pendulum bench-robustness test throughput clean
+	bench-pendulum bench-robustness bench-data-efficiency test throughput clean
 
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -46,6 +46,9 @@ bench-pendulum: $(VENV)/.installed  # the fourth system, added in one file (~4 m
 
 bench-robustness: $(VENV)/.installed  # the online-learning envelope: ~3,200 episodes, many hours
 	$(PY) -m benchmarks --preset robustness --workers 2 --out benchmarks/results/robustness
+
+bench-data-efficiency: $(VENV)/.installed  # success and interaction before success vs data, PILCO's cart pole (~70 min on 2 cores)
+	$(PY) -m benchmarks --preset data-efficiency --workers 2 --out benchmarks/results/data-efficiency
 
 test: $(VENV)/.installed
 	$(PY) -m ruff check .
