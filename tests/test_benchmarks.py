@@ -433,3 +433,16 @@ def test_residual_decomposition_adds_up_to_the_prediction(linear: Any) -> None:
             assert p["linear"][0] == 0.0 and p["linear"][2] == 0.0
     with pytest.raises(ValueError, match="fitted SSGP"):
         decompose(IncrementalSSGP(10), z)
+
+
+@pytest.mark.parametrize("argv", [["--seeds", "200"], ["--cells", "nowhere"],
+                                  ["--controllers", "robust-mpc"], ["--controllers", ""]])
+def test_the_rti_recovery_study_refuses_evaluation_seeds_unknown_cells_and_non_rti_controllers(
+        argv: list[str], tmp_path: Path) -> None:
+    """``benchmarks.studies.rti_recovery``: tuning only on tuning seeds, its own cells, RTI
+    controllers; a usage error runs nothing and writes nothing."""
+    from benchmarks.studies import rti_recovery
+
+    with pytest.raises(SystemExit):
+        rti_recovery.main([*argv, "--out", str(tmp_path / "out")])
+    assert not (tmp_path / "out").exists()

@@ -117,6 +117,35 @@ def test_a_recipe_takes_its_own_levenberg_marquardt_where_the_system_tunes_one()
         == rti_tuning("cartpole").levenberg_marquardt
 
 
+
+def test_a_recipe_takes_its_own_recovery_budget_where_the_system_tunes_one():
+    """On the Dubins vehicle only the robust recipe's RTI recovers rejected steps
+    (``RTITuning.recipe_recovery_iterations``), as the built controller resolved it; an explicit
+    ``RTI(recovery_iterations=...)`` wins, and a recipe ``mu`` does not disturb the budget."""
+    from gp_agents.mpc import rti_tuning
+
+    tuning = rti_tuning("dubins")
+    env = _env("dubins")
+    budget = tuning.recipe_recovery_iterations["robust"]
+    assert budget > 0 == tuning.recovery_iterations
+
+    def planned(agent: PseudospectralMPC) -> int:
+        settings = agent.scheme_settings
+        assert isinstance(settings, RTI) and settings.recovery_iterations is not None
+        return settings.recovery_iterations
+
+    for scheme in ("rti", "rti-split"):
+        assert planned(make_mpc(env, "robust", scheme=scheme)) == budget
+        for recipe in ("paper", "nominal", "oracle", "blackbox"):
+            assert planned(make_mpc(env, recipe, scheme=scheme)) == 0, recipe
+    assert planned(make_mpc(env, "robust", scheme=RTI(recovery_iterations=1))) == 1
+    robust = make_mpc(env, "robust", scheme=RTI(levenberg_marquardt=0.5))
+    assert planned(robust) == budget and robust.levenberg_marquardt == 0.5
+    cart = _env("cartpole")
+    assert not rti_tuning("cartpole").recipe_recovery_iterations
+    assert planned(make_mpc(cart, "nominal", scheme="rti")) \
+        == rti_tuning("cartpole").recovery_iterations > 0
+
 # ----------------------------------------------------------------------------- settings
 def _probe(agent: PseudospectralMPC) -> dict:
     """What a setting can change, measured on the built controller: the first actions and

@@ -193,7 +193,11 @@ def test_planning_defaults_are_checked(kwargs, message):
     ({"qp_solver": ""}, "qp_solver"),
     ({"recipe_levenberg_marquardt": {"robust": -1.0}}, "recipe_levenberg_marquardt"),
     ({"recipe_levenberg_marquardt": {"robust": np.nan}}, "recipe_levenberg_marquardt"),
-    ({"recipe_levenberg_marquardt": {3: 1.0}}, "recipe_levenberg_marquardt")])
+    ({"recipe_levenberg_marquardt": {3: 1.0}}, "recipe_levenberg_marquardt"),
+    ({"recipe_recovery_iterations": {"robust": -1}}, "recipe_recovery_iterations"),
+    ({"recipe_recovery_iterations": {"robust": 1.5}}, "recipe_recovery_iterations"),
+    ({"recipe_recovery_iterations": {"robust": True}}, "recipe_recovery_iterations"),
+    ({"recipe_recovery_iterations": {3: 1}}, "recipe_recovery_iterations")])
 def test_rti_tuning_is_checked(kwargs, message):
     from gp_agents.mpc import RTITuning
 

@@ -105,15 +105,24 @@ def recipe_settings(recipe: str, scheme: str | Converged | RTI | None = None
 
 def _recipe_scheme(recipe: str, env: gym.Env, scheme: str | Converged | RTI,
                    overrides: dict[str, Any]) -> str | Converged | RTI:
-    """``scheme`` with the system's Levenberg-Marquardt ``mu`` for ``recipe``
-    (:attr:`~gp_agents.mpc.tuning.RTITuning.recipe_levenberg_marquardt`) when it is a
-    real-time iteration that sets none and no override names one; else ``scheme`` as given."""
+    """``scheme`` with the system's Levenberg-Marquardt ``mu`` and recovery budget for
+    ``recipe`` (:attr:`~gp_agents.mpc.tuning.RTITuning.recipe_levenberg_marquardt`,
+    :attr:`~gp_agents.mpc.tuning.RTITuning.recipe_recovery_iterations`) when it is a
+    real-time iteration that sets neither itself and no override names one; else ``scheme``
+    as given."""
     resolved = scheme_settings(scheme)
-    if (not isinstance(resolved, RTI) or resolved.levenberg_marquardt is not None
+    if (not isinstance(resolved, RTI)
             or any(LEGACY_SETTINGS.get(k, "").startswith("scheme=") for k in overrides)):
         return scheme
-    mu = rti_tuning(env.unwrapped.nominal_model).recipe_levenberg_marquardt.get(recipe)
-    return scheme if mu is None else dataclasses.replace(resolved, levenberg_marquardt=mu)
+    tuning = rti_tuning(env.unwrapped.nominal_model)
+    changes: dict[str, Any] = {}
+    mu = tuning.recipe_levenberg_marquardt.get(recipe)
+    if mu is not None and resolved.levenberg_marquardt is None:
+        changes["levenberg_marquardt"] = mu
+    budget = tuning.recipe_recovery_iterations.get(recipe)
+    if budget is not None and resolved.recovery_iterations is None:
+        changes["recovery_iterations"] = int(budget)
+    return dataclasses.replace(resolved, **changes) if changes else scheme
 
 
 def make_mpc(env: gym.Env, recipe: str = DEFAULT_RECIPE, *,

@@ -30,9 +30,12 @@ are in the documentation):
   latency at the same outcomes.
 
 - Recovery iterations (a rejected step's feasibility projections and SQP iterations before
-  the converged fallback): 3 on every system, which keeps every system's rejected steps within
-  a few percent at the converged recipe's outcomes (decision record
-  ``docs/studies/rti_recovery.md``, tuning seeds).
+  the converged fallback): 3, which keeps every system's rejected steps within a few percent
+  at the converged recipe's outcomes (decision record ``docs/studies/rti_recovery.md``, tuning
+  seeds). On the Dubins vehicle only the robust recipe recovers (with its ``mu`` = 1): the
+  other recipes' lightly damped steps, recovered, follow plans the converged solve would not
+  take (higher costs, a lost tuning seed), and keep the converged fallback alone
+  (``RTITuning.recipe_recovery_iterations``).
 
 A system without an entry gets :class:`RTITuning`'s defaults; a model of no registered system at
 all gets the plain ``"osqp"`` QP solver.
@@ -52,7 +55,8 @@ __all__ = ["RTI_TUNING", "RTITuning", "register_rti_tuning", "rti_tuning"]
 
 
 RECOVERY_ITERATIONS = 3
-"""Recovery QP solves of every system's RTI (the study ``rti_recovery``)."""
+"""Recovery QP solves of the RTI (the study ``rti_recovery``; the Dubins vehicle: the robust
+recipe's only)."""
 
 
 @dataclass(frozen=True)
@@ -74,6 +78,8 @@ class RTITuning:
             close to the truth moves its plan little from one period to the next and takes a
             heavier damping that a wrong model, whose plan must be corrected at every
             period, does not.
+        recipe_recovery_iterations: ``recovery_iterations`` of the named recipes where it
+            differs from the system's (recipe name -> budget).
     """
 
     qp_solver: str = "active-set:proxqp"
@@ -81,6 +87,7 @@ class RTITuning:
     learned_term: str = "linearized"
     recovery_iterations: int = RECOVERY_ITERATIONS
     recipe_levenberg_marquardt: Mapping[str, float] = field(default_factory=dict)
+    recipe_recovery_iterations: Mapping[str, int] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if not (isinstance(self.qp_solver, str) and self.qp_solver):
@@ -96,6 +103,11 @@ class RTITuning:
             if not (isinstance(recipe, str) and np.isfinite(mu) and mu >= 0):
                 raise ValueError(f"RTITuning: recipe_levenberg_marquardt must map recipe names "
                                  f"to finite numbers >= 0, got {recipe!r}: {mu!r}")
+        for recipe, budget in self.recipe_recovery_iterations.items():
+            if not (isinstance(recipe, str) and isinstance(budget, int | np.integer)
+                    and not isinstance(budget, bool) and budget >= 0):
+                raise ValueError(f"RTITuning: recipe_recovery_iterations must map recipe names "
+                                 f"to ints >= 0, got {recipe!r}: {budget!r}")
         if not (isinstance(self.learned_term, str) and self.learned_term):
             raise ValueError(f"RTITuning: learned_term must be a learned-term name, got "
                              f"{self.learned_term!r}")
@@ -105,7 +117,8 @@ RTI_TUNING: dict[str, RTITuning] = {
     "cartpole": RTITuning(levenberg_marquardt=1e-2),
     "quadrotor": RTITuning(learned_term="linearized-pattern"),
     "dubins": RTITuning(qp_solver="active-set:piqp", levenberg_marquardt=1e-2,
-                        recipe_levenberg_marquardt={"robust": 1.0}),
+                        recipe_levenberg_marquardt={"robust": 1.0}, recovery_iterations=0,
+                        recipe_recovery_iterations={"robust": RECOVERY_ITERATIONS}),
     "pendulum": RTITuning(qp_solver="active-set:piqp"),
 }
 """The registered tuning by system name (the built-in systems'; module docstring)."""
