@@ -106,9 +106,14 @@ def folder_page(folder: Path) -> str:
 
 def write_results_pages(results: Path, out: Path) -> list[Path]:
     """Write a page per results folder with a ``summary.csv`` (the archive listed only) and an
-    index into ``out``; returns the pages written."""
+    index into ``out``, removing the pages of folders that are gone (moved to the archive,
+    renamed); returns the pages written."""
     out.mkdir(parents=True, exist_ok=True)
     folders = sorted(p.parent for p in results.glob("*/summary.csv"))
+    current = {f"{folder.name}.md" for folder in folders} | {"index.md"}
+    for stale in out.glob("*.md"):
+        if stale.name not in current:
+            stale.unlink()
     written = []
     for folder in folders:
         page = out / f"{folder.name}.md"

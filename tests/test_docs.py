@@ -34,3 +34,24 @@ def test_docs_build_without_warnings_and_list_every_public_name(tmp_path: Path):
     assert missing == []
     # the results pages are generated from the committed summary.csv files
     assert (out / "results" / "recommended.html").is_file()
+
+
+def test_results_pages_follow_the_results_folders(tmp_path: Path):
+    """A page per results folder with a ``summary.csv``, the archive only named in the index,
+    and the page of a folder that is gone removed (no stale page outside every toctree)."""
+    sys.path.insert(0, str(REPO / "docs"))
+    try:
+        from results_pages import write_results_pages
+    finally:
+        sys.path.remove(str(REPO / "docs"))
+    results, out = tmp_path / "results", tmp_path / "pages"
+    summary = (REPO / "benchmarks" / "results" / "recommended" / "summary.csv").read_text()
+    for folder in ("kept", "archive/old"):
+        (results / folder).mkdir(parents=True)
+        (results / folder / "summary.csv").write_text(summary)
+    out.mkdir()
+    (out / "moved.md").write_text("# a folder that was moved to the archive\n")
+    written = write_results_pages(results, out)
+    assert sorted(p.name for p in written) == ["index.md", "kept.md"]
+    assert sorted(p.name for p in out.glob("*.md")) == ["index.md", "kept.md"]
+    assert "`old`" in (out / "index.md").read_text()
