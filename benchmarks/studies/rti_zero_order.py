@@ -20,7 +20,7 @@ from a report's ``metrics.csv`` (``--metrics``, e.g. the ``rti`` preset's evalua
 Outcomes only: the machine's load changes no number here. Run (one core)::
 
     OMP_NUM_THREADS=1 python -m benchmarks.studies.rti_zero_order [--seeds 100-115] \\
-        [--metrics benchmarks/results/rti/metrics.csv] [--out FILE.md]
+        [--metrics benchmarks/results/archive/rti-before-recovery/metrics.csv] [--out FILE.md]
 """
 
 from __future__ import annotations
