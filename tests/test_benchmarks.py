@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import csv
 import shutil
 import subprocess
 from pathlib import Path
@@ -446,3 +447,42 @@ def test_the_rti_recovery_study_refuses_evaluation_seeds_unknown_cells_and_non_r
     with pytest.raises(SystemExit):
         rti_recovery.main([*argv, "--out", str(tmp_path / "out")])
     assert not (tmp_path / "out").exists()
+
+
+def test_the_trusted_rti_evaluation_pairs_the_two_controllers_seed_by_seed(tmp_path: Path) -> None:
+    """``benchmarks.studies.rti_trust_evaluation``: a cell is met only with the converged
+    MPC's successes, within the rejection bound; the seeds are paired (lost by the RTI only,
+    by both, by the converged MPC only) and the rejected fraction is also given on the seeds
+    both won."""
+    from benchmarks.studies import rti_trust_evaluation as ev
+
+    key = {"env": "cartpole", "scenario": "online", "cell": "fixed truth", "n_init": "200",
+           "status": "ok"}
+    # seed: (RTI success, RTI steps, RTI rejected, converged success)
+    seeds = {0: (True, 100, 2, True), 1: (False, 100, 80, True), 2: (False, 100, 90, False),
+             3: (True, 100, 8, False)}
+    metrics = [{**key, "controller": ev.RTI, "seed": s, "success": ok, "rti_steps": n,
+                "rti_rejected": rej} for s, (ok, n, rej, _) in seeds.items()]
+    metrics += [{**key, "controller": ev.CONVERGED, "seed": s, "success": conv,
+                 "rti_steps": 0, "rti_rejected": 0} for s, (*_, conv) in seeds.items()]
+    summary = [{**key, "controller": ev.RTI, "episodes": 4, "success_rate": 0.5,
+                "rti_rejected_fraction": 180 / 400, "rti_steps": 400, "rti_recovered": 0,
+                "rti_rejected": 180, "final_position_error_max": "nan", "cost_mean": 20.0,
+                "solver_failures": 0},
+               {**key, "controller": ev.CONVERGED, "episodes": 4, "success_rate": 0.5,
+                "rti_rejected_fraction": "nan", "rti_steps": 0, "rti_recovered": 0,
+                "rti_rejected": 0, "final_position_error_max": "nan", "cost_mean": 18.0,
+                "solver_failures": 0}]
+    for name, rows in (("metrics.csv", metrics), ("summary.csv", summary)):
+        with (tmp_path / name).open("w", newline="") as fh:
+            writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
+            writer.writeheader()
+            writer.writerows(rows)
+    pair = ev.paired(tmp_path / "metrics.csv")[("cartpole", "online", "fixed truth", "200")]
+    assert (pair["rti_only"], pair["both"], pair["converged_only"]) == (1, 1, 1)
+    assert pair["rejected_both_won"] == pytest.approx(0.02)
+    (cell,) = ev.cells(tmp_path / "summary.csv")
+    assert (cell["success_rti"], cell["success_converged"]) == (2, 2)
+    assert not cell["met"]  # 45% of the RTI steps rejected
+    text = ev.write(tmp_path).read_text()
+    assert "| 1 / 1 / 1 | 2 |" in text and "**no**" in text
