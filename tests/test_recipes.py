@@ -141,6 +141,17 @@ def test_a_recipe_takes_its_own_recovery_budget_where_the_system_tunes_one():
     assert planned(make_mpc(env, "robust", scheme=RTI(recovery_iterations=1))) == 1
     robust = make_mpc(env, "robust", scheme=RTI(levenberg_marquardt=0.5))
     assert planned(robust) == budget and robust.levenberg_marquardt == 0.5
+    # the deprecated flat keywords change only what they name, the recipe's entries stay
+    with pytest.warns(DeprecationWarning):
+        legacy = make_mpc(env, "robust", scheme="rti-split", qp_solver="osqp")
+    assert (planned(legacy), legacy.levenberg_marquardt, legacy.qp_solver) == (
+        budget, tuning.recipe_levenberg_marquardt["robust"], "osqp")
+    assert legacy.scheme == "rti-split"
+    with pytest.warns(DeprecationWarning):
+        legacy = make_mpc(env, "robust", scheme="rti", levenberg_marquardt=0.25)
+    assert (planned(legacy), legacy.levenberg_marquardt) == (budget, 0.25)
+    with pytest.raises(TypeError, match="both given"):
+        make_mpc(env, "robust", scheme=RTI(), qp_solver="osqp")
     cart = _env("cartpole")
     assert not rti_tuning("cartpole").recipe_recovery_iterations
     assert planned(make_mpc(cart, "nominal", scheme="rti")) \

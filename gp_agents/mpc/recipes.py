@@ -33,7 +33,7 @@ import gymnasium as gym
 import gp_envs
 from gp_agents.learners.recipes import online_ssgp, parametric_ssgp
 from gp_agents.mpc.blackbox import BlackBoxModel
-from gp_agents.mpc.controller import LEGACY_SETTINGS, PseudospectralMPC
+from gp_agents.mpc.controller import LEGACY_SETTINGS, PseudospectralMPC, _from_legacy
 from gp_agents.mpc.settings import RTI, Converged, Residual, scheme_settings
 from gp_agents.mpc.tuning import rti_tuning
 from gp_envs.model import ControlModel
@@ -107,12 +107,17 @@ def _recipe_scheme(recipe: str, env: gym.Env, scheme: str | Converged | RTI,
                    overrides: dict[str, Any]) -> str | Converged | RTI:
     """``scheme`` with the system's Levenberg-Marquardt ``mu`` and recovery budget for
     ``recipe`` (:attr:`~gp_agents.mpc.tuning.RTITuning.recipe_levenberg_marquardt`,
-    :attr:`~gp_agents.mpc.tuning.RTITuning.recipe_recovery_iterations`) when it is a
-    real-time iteration that sets neither itself and no override names one; else ``scheme``
-    as given."""
+    :attr:`~gp_agents.mpc.tuning.RTITuning.recipe_recovery_iterations`) where the real-time
+    iteration sets neither itself; else ``scheme`` as given. The deprecated flat keywords of
+    the scheme in ``overrides`` (``qp_solver=``, ``levenberg_marquardt=``, the fallback's
+    solver settings) are taken out and mapped onto it first, so that they change only what
+    they name."""
+    legacy = {k: overrides.pop(k) for k in list(overrides)
+              if LEGACY_SETTINGS.get(k, "").startswith("scheme=")}
+    if legacy:
+        scheme = _from_legacy(legacy, None, scheme, None, None, None)[1]
     resolved = scheme_settings(scheme)
-    if (not isinstance(resolved, RTI)
-            or any(LEGACY_SETTINGS.get(k, "").startswith("scheme=") for k in overrides)):
+    if not isinstance(resolved, RTI):
         return scheme
     tuning = rti_tuning(env.unwrapped.nominal_model)
     changes: dict[str, Any] = {}
@@ -158,8 +163,8 @@ def make_mpc(env: gym.Env, recipe: str = DEFAULT_RECIPE, *,
     if "learner" in overrides and settings["learner"] is None and overrides["learner"] is not None:
         raise ValueError(f"recipe {recipe!r} learns nothing: it takes no learner (the learning "
                          f"recipes: 'robust', 'paper', 'blackbox')")
-    settings.update(overrides)
     settings["scheme"] = _recipe_scheme(recipe, env, settings["scheme"], overrides)
+    settings.update(overrides)
     learner = settings.pop("learner")
     source = (OracleModel(env) if recipe == "oracle" else BlackBoxModel(env)
               if recipe == "blackbox" else None)
