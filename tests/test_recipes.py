@@ -157,6 +157,25 @@ def test_a_recipe_takes_its_own_recovery_budget_where_the_system_tunes_one():
     assert planned(make_mpc(cart, "nominal", scheme="rti")) \
         == rti_tuning("cartpole").recovery_iterations > 0
 
+
+def test_a_recipe_entry_of_the_rti_tuning_must_name_a_recipe():
+    """A misspelt recipe in a system's per-recipe RTI tuning raises at the RTI's build
+    instead of being ignored; the converged scheme does not read it."""
+    from gp_agents.mpc import register_rti_tuning, rti_tuning
+
+    base = rti_tuning("pendulum")
+    register_rti_tuning("pendulum", dataclasses.replace(
+        base, recipe_recovery_iterations={"robsut": 1}))
+    try:
+        env = _env("pendulum")
+        with pytest.raises(ValueError, match="robsut"):
+            make_mpc(env, "robust", scheme="rti")
+        assert make_mpc(env, "robust").levenberg_marquardt is None
+    finally:
+        register_rti_tuning("pendulum", base)
+    assert rti_tuning("pendulum") == base
+
+
 # ----------------------------------------------------------------------------- settings
 def _probe(agent: PseudospectralMPC) -> dict:
     """What a setting can change, measured on the built controller: the first actions and

@@ -120,6 +120,10 @@ def _recipe_scheme(recipe: str, env: gym.Env, scheme: str | Converged | RTI,
     if not isinstance(resolved, RTI):
         return scheme
     tuning = rti_tuning(env.unwrapped.nominal_model)
+    named = {*tuning.recipe_levenberg_marquardt, *tuning.recipe_recovery_iterations}
+    if named - set(RECIPES):
+        raise ValueError(f"the RTI tuning of this system names unknown recipe(s) "
+                         f"{sorted(named - set(RECIPES))}; recipes: {sorted(RECIPES)}")
     changes: dict[str, Any] = {}
     mu = tuning.recipe_levenberg_marquardt.get(recipe)
     if mu is not None and resolved.levenberg_marquardt is None:
