@@ -15,7 +15,7 @@ $(VENV)/.installed: pyproject.toml
 	$(PY) -m pip install -q --upgrade pip
 	# the CPU build of torch from this machine's disk; a bare `torch` would pull CUDA
 	$(PY) -m pip install -q torch==2.13.0
-	$(PY) -m pip install -q -e ".[rl,dev,bench,docs]"
+	$(PY) -m pip install -q -e ".[rl,dev,bench,docs,mujoco]"
 	touch $@
 
 bench: $(VENV)/.installed

@@ -20,8 +20,10 @@ import gymnasium as gym
 import numpy as np
 
 from gp_agents.agent import rollout
+from gp_envs.base import GPEnv
 from gp_envs.model import ControlModel
-from gp_envs.systems import system_of
+from gp_envs.systems import SYSTEMS, DataPolicy, Policy
+from gp_envs.wrapper import model_wrapper, nominal_model
 
 
 @dataclass(frozen=True)
@@ -43,38 +45,53 @@ class Transitions:
 
 
 def collect_initial_data(env: gym.Env, n_points: int = 200, seed: int = 0,
-                         action_noise: float = 0.05, *, same_system: bool = True
-                         ) -> Transitions:
-    """Roll out the crude sinusoid-tracking controller of ``env``'s system on ``env``.
+                         action_noise: float = 0.05, *, same_system: bool = True,
+                         policy: Policy | None = None) -> Transitions:
+    """Roll out a data-collecting controller on ``env``: its system's crude tracking controller,
+    uniform random actions, or your own ``policy``.
 
-    The controller is the system's registered :attr:`gp_envs.systems.System.data_policy`,
-    started from its ``data_start`` state if it has one. By default the data come from the
-    system that ``env.reset(seed=seed)`` gives: with a randomized truth (``randomize > 0``) or a
-    redrawn nominal model, the episode you then run with ``env.reset(seed=seed)`` is on the
-    same system the data came from (every data episode after the first resets with
-    ``options={"keep_system": True}``). In a time-varying scenario the data episodes see its
-    changes as any episode does; make the data env with ``time_varying=False`` for data from
-    before them.
+    The controller, unless ``policy`` is given: for a registered ``gp_envs`` system, its
+    :attr:`gp_envs.systems.System.data_policy` (started from its ``data_start`` state if it has
+    one) plus Gaussian action noise; for any other env with a nominal model (one made by
+    :func:`gp_envs.wrap`, or an unregistered system), actions drawn uniformly within the
+    model's control bounds. By default the data come from the system that
+    ``env.reset(seed=seed)`` gives: with a randomized truth (``randomize > 0``) or a redrawn
+    nominal model, the episode you then run with ``env.reset(seed=seed)`` is on the same system
+    the data came from (every data episode after the first resets with ``options=
+    {"keep_system": True}`` on a ``gp_envs`` env, and without a seed, continuing the env's own
+    random stream, on any other). In a time-varying scenario the data episodes see its changes
+    as any episode does; make the data env with ``time_varying=False`` for data from before
+    them.
 
     Args:
-        env: a ``gp_envs`` environment (made with ``gym.make``); it is reset here.
+        env: an env with a nominal model (:func:`gp_envs.nominal_model`); it is reset here.
         n_points: number of transitions to collect (episodes are restarted as needed).
         seed: seeds the env resets, the reference and the action noise.
-        action_noise: standard deviation of Gaussian action noise, as a fraction of the action
-            range.
+        action_noise: standard deviation of Gaussian action noise added to a tracking
+            controller or ``policy``, as a fraction of the action range (not added to the
+            uniform random actions).
         same_system: False: each data episode is an ordinary reset with seed
             ``seed * 1000 + k``, so on a randomized env the data come from *other* systems
             than the episode of ``seed`` (data from other draws, on purpose).
+        policy: your own data controller ``policy(obs, t) -> u`` (observation (n,), seconds
+            since the episode's start, control (m,)); None: the default above.
 
     Returns:
         The transitions, ``len == n_points``.
 
     Raises:
-        ValueError: for an env of an unknown system or ``n_points < 1``.
+        ValueError: ``n_points < 1``; a negative or non-finite ``action_noise``.
+        TypeError: an env without a nominal model; ``policy`` not callable.
     """
-    system = system_of(env)
+    model = nominal_model(env)
     if isinstance(n_points, bool) or int(n_points) < 1:
         raise ValueError(f"n_points must be >= 1, got {n_points}")
+    if not (np.isfinite(action_noise) and action_noise >= 0):
+        raise ValueError(f"action_noise must be a finite number >= 0, got {action_noise}")
+    if policy is not None and not callable(policy):
+        raise TypeError(f"policy must be a function policy(obs, t) -> u, got "
+                        f"{type(policy).__name__}")
+    system = SYSTEMS.get(model.name) if model_wrapper(env) is None else None
     n_points = int(n_points)
     rng = np.random.default_rng(seed)
     if same_system:
@@ -82,11 +99,17 @@ def collect_initial_data(env: gym.Env, n_points: int = 200, seed: int = 0,
     X, U, Xn = [], [], []
     episode = 0
     while sum(len(x) for x in X) < n_points:
-        options: dict[str, Any] = {} if system.data_start is None else {
-            "state": np.array(system.data_start)}
-        if same_system:
+        options: dict[str, Any] = {}
+        if system is not None and system.data_start is not None:
+            options["state"] = np.array(system.data_start)
+        if same_system and isinstance(env.unwrapped, GPEnv):
             options["keep_system"] = True
-        agent = _NoisyTracker(env, rng, action_noise)
+        if policy is not None:
+            agent: _DataAgent = _NoisyTracker(env, rng, action_noise, lambda m, r: policy)
+        elif system is not None:
+            agent = _NoisyTracker(env, rng, action_noise, system.data_policy)
+        else:
+            agent = _UniformActions(env, rng)
         run = rollout(env, agent, None if same_system else seed * 1000 + episode,
                       options=options or None, max_steps=n_points - sum(len(x) for x in X))
         X.append(run.observations[:-1])
@@ -96,27 +119,50 @@ def collect_initial_data(env: gym.Env, n_points: int = 200, seed: int = 0,
     return Transitions(np.concatenate(X), np.concatenate(U), np.concatenate(Xn))
 
 
-class _NoisyTracker:
-    """The system's crude tracking controller plus Gaussian action noise, as an
-    :class:`gp_agents.agent.Agent`; its reference is drawn at each reset, for the episode's
-    nominal model."""
+class _DataAgent:
+    """A data controller as an :class:`gp_agents.agent.Agent` (it does not learn)."""
 
-    def __init__(self, env: gym.Env, rng: np.random.Generator, noise: float) -> None:
+    def __init__(self, env: gym.Env, rng: np.random.Generator) -> None:
         self.env, self.rng = env, rng
-        self.span = env.action_space.high - env.action_space.low
-        self.noise = noise
+        self.low, self.high = env.action_space.low, env.action_space.high
 
     def reset(self) -> None:
-        model: ControlModel = self.env.unwrapped.nominal_model
-        self.policy = system_of(model).data_policy(model, self.rng)
+        """Nothing to forget."""
+
+    def act(self, obs: np.ndarray) -> np.ndarray:  # pragma: no cover - overridden
+        raise NotImplementedError
+
+    def observe(self, obs: np.ndarray, action: np.ndarray, next_obs: np.ndarray) -> None:
+        """A data controller does not learn."""
+
+
+class _NoisyTracker(_DataAgent):
+    """A tracking controller (built per episode by ``make(model, rng)``, for the episode's
+    nominal model) plus Gaussian action noise."""
+
+    def __init__(self, env: gym.Env, rng: np.random.Generator, noise: float,
+                 make: DataPolicy) -> None:
+        super().__init__(env, rng)
+        self.span = self.high - self.low
+        self.noise, self.make = noise, make
+
+    def reset(self) -> None:
+        model: ControlModel = nominal_model(self.env)
+        self.policy = self.make(model, self.rng)
         self.dt, self.t = model.dt, 0.0
 
     def act(self, obs: np.ndarray) -> np.ndarray:
-        action = self.policy(np.asarray(obs, float), self.t) + self.noise * self.span * (
-            self.rng.normal(size=self.span.shape))
+        action = np.asarray(self.policy(np.asarray(obs, float), self.t), float)
+        if action.shape != self.span.shape or not np.all(np.isfinite(action)):
+            raise ValueError(f"the data policy must return {self.span.shape} finite controls, "
+                             f"got {action!r}")
+        action = action + self.noise * self.span * self.rng.normal(size=self.span.shape)
         self.t += self.dt
-        return np.clip(action, self.env.action_space.low,
-                       self.env.action_space.high).astype(np.float32)
+        return np.clip(action, self.low, self.high).astype(np.float32)
 
-    def observe(self, obs: np.ndarray, action: np.ndarray, next_obs: np.ndarray) -> None:
-        """The tracker does not learn."""
+
+class _UniformActions(_DataAgent):
+    """Actions drawn uniformly within the action space (the model's control bounds)."""
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        return self.rng.uniform(self.low, self.high).astype(np.float32)

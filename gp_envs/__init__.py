@@ -14,8 +14,10 @@ controllers' defaults and the benchmark entry):
 
 ``gym.make("gp_envs:gp_envs/CartPoleSwingUp-v0")`` imports and registers in one go.
 
-What a controller may know is ``env.unwrapped.nominal_model`` (a :class:`ControlModel`);
-:func:`oracle_model` gives the truth, for upper-bound baselines only.
+What a controller may know is the env's nominal model (a :class:`ControlModel`:
+:func:`nominal_model` finds it, ``env.unwrapped.nominal_model`` for these envs); :func:`wrap`
+gives any other Gymnasium env one. :func:`oracle_model` gives the truth, for upper-bound
+baselines only.
 """
 
 from __future__ import annotations
@@ -40,10 +42,11 @@ from gp_envs.systems import (
     register_system,
     unregister_system,
 )
+from gp_envs.wrapper import ModelWrapper, model_wrapper, nominal_model, wrap
 
-__all__ = ["ENV_IDS", "SYSTEMS", "ControlModel", "Obstacle", "PlanningDefaults", "System",
-           "Task", "get_system", "oracle_model", "oracle_state", "register_system",
-           "unregister_system"]
+__all__ = ["ENV_IDS", "SYSTEMS", "ControlModel", "ModelWrapper", "Obstacle", "PlanningDefaults",
+           "System", "Task", "get_system", "nominal_model", "oracle_model", "oracle_state",
+           "register_system", "unregister_system", "wrap"]
 
 __version__ = "0.1.0"
 
@@ -57,15 +60,21 @@ load_system_plugins()
 def oracle_model(env: gym.Env) -> ControlModel:
     """The *true* model of ``env``'s current episode, for an upper-bound (oracle) baseline.
 
-    Ordinary controllers must use ``env.unwrapped.nominal_model`` instead: this function exists
-    so that benchmarks can build the oracle explicitly and visibly. With per-episode
-    randomization the truth changes at every ``reset``; call this after ``reset``.
+    Ordinary controllers must use :func:`nominal_model` instead: this function exists so that
+    benchmarks can build the oracle explicitly and visibly. With per-episode randomization the
+    truth changes at every ``reset``; call this after ``reset``. For an env given its model by
+    :func:`wrap`, the ``true_model`` passed there.
 
     Raises:
-        TypeError: ``env`` is not (a wrapper of) a ``gp_envs`` environment.
+        TypeError: ``env`` is neither (a wrapper of) a ``gp_envs`` environment nor wrapped by
+            :func:`wrap`.
+        ValueError: a wrapped env without a ``true_model``.
     """
     from gp_envs.base import GPEnv
 
+    wrapper = model_wrapper(env)
+    if wrapper is not None:
+        return wrapper.oracle_model()
     base = env.unwrapped
     if not isinstance(base, GPEnv):
         raise TypeError(f"oracle_model needs a gp_envs environment, got {type(base).__name__}")

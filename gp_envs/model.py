@@ -23,6 +23,10 @@ import numpy as np
 
 from gp_envs.physics.ranges import ParamRange, check_params
 
+ANY_REAL = ParamRange(-np.inf, np.inf, False, False, "a model parameter (no range given)")
+"""The range of a parameter of an ODE whose module declares no ``PARAM_RANGES``: any finite
+real number."""
+
 OdeFn = Callable[[ca.SX, ca.SX, ca.SX], ca.SX]
 """Signature of a physics module's ``ode(x, u, p)``: state (n,), control (m,), params (k,)."""
 
@@ -80,43 +84,123 @@ class Obstacle:
         return np.hypot(d[..., 0], d[..., 1]) - self.radius - body_radius
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Task:
-    """The control task shared by the env's reward and the controllers' cost.
+    """The control task: the controllers' cost and the success rule.
 
-    Stage cost (per second): ``l(x, u) = e' Q e + (u - u_ref)' R (u - u_ref)`` with the error
-    ``e = x - goal`` in which each *periodic* component (an angle whose goal is reached from
-    either side, like the upright cart pole) is wrapped to ``[-pi, pi]``, ``atan2(sin e, cos e)``,
-    so that the cost is the same for ``theta`` and ``theta + 2 pi``. The env's reward for one
-    control period is ``-dt * l(x_k, u_k)``; a controller adds ``e' Qf e`` at the end of its
-    horizon (:meth:`terminal_cost`).
+    Stage cost (per second): ``l(x, u) = e' Q e + (u - u_ref)' R (u - u_ref) + stage(x, u)``
+    with the error ``e = x - goal`` in which each *periodic* component (an angle whose goal is
+    reached from either side, like the upright cart pole) is wrapped to ``[-pi, pi]``,
+    ``atan2(sin e, cos e)``, so that the cost is the same for ``theta`` and ``theta + 2 pi``; a
+    controller adds ``e' Qf e + terminal(x)`` at the end of its horizon (:meth:`terminal_cost`).
+    The quadratic part is the default; ``stage`` and ``terminal`` add any CasADi expression
+    (e.g. a saturating cost; set ``Q``/``R`` to zero for none of the quadratic part). A
+    ``gp_envs`` env's reward for one control period is ``-dt * l(x_k, u_k)``; an env given its
+    model by :func:`gp_envs.wrap` keeps its own reward.
 
     Attributes:
         goal: (n,) goal state.
         Q: (n, n) state weight.
         R: (m, m) control weight.
-        Qf: (n, n) terminal weight for finite-horizon controllers.
-        u_ref: (m,) control the cost is centred on (e.g. nominal hover thrust).
         goal_tolerance: (n,) per-component ``abs(x_i - goal_i)`` tolerance; ``inf`` means "not
             checked".
         hold_time: seconds the state must stay within tolerance for the task to count as success.
         duration: episode length in seconds (the time limit).
+        Qf: (n, n) terminal weight for finite-horizon controllers (default: none, zeros).
+        u_ref: (m,) control the cost is centred on (e.g. nominal hover thrust; default zeros).
         obstacles: obstacles to keep clear of (position = first two state components).
         body_radius: the vehicle's radius in metres, for obstacle clearance.
         periodic_indices: state components whose error is wrapped to ``[-pi, pi]``.
+        stage: an extra stage cost ``stage(x, u) -> scalar`` per second, in CasADi operations
+            (x (n,), u (m,) symbols), or None.
+        terminal: an extra terminal cost ``terminal(x) -> scalar`` in CasADi operations, or
+            None.
+
+    Raises:
+        ValueError: weights, goal, tolerance or reference of sizes that do not match; a
+            negative ``hold_time``; a non-positive ``duration``; ``stage``/``terminal`` not
+            callable.
     """
 
     goal: np.ndarray
     Q: np.ndarray
     R: np.ndarray
-    Qf: np.ndarray
-    u_ref: np.ndarray
     goal_tolerance: np.ndarray
     hold_time: float
     duration: float
+    Qf: np.ndarray | None = None
+    u_ref: np.ndarray | None = None
     obstacles: tuple[Obstacle, ...] = ()
     body_radius: float = 0.0
     periodic_indices: tuple[int, ...] = ()
+    stage: Callable[[Any, Any], Any] | None = field(default=None, repr=False)
+    terminal: Callable[[Any], Any] | None = field(default=None, repr=False)
+
+    def __post_init__(self) -> None:
+        put = object.__setattr__
+        goal = np.asarray(self.goal, dtype=float).reshape(-1)
+        n = goal.size
+        R = np.atleast_2d(np.asarray(self.R, dtype=float))
+        m = R.shape[0]
+        put(self, "goal", goal)
+        put(self, "R", R)
+        put(self, "Q", np.atleast_2d(np.asarray(self.Q, dtype=float)))
+        put(self, "Qf", np.zeros((n, n)) if self.Qf is None
+            else np.atleast_2d(np.asarray(self.Qf, dtype=float)))
+        put(self, "u_ref", np.zeros(m) if self.u_ref is None
+            else np.asarray(self.u_ref, dtype=float).reshape(-1))
+        put(self, "goal_tolerance", np.asarray(self.goal_tolerance, dtype=float).reshape(-1))
+        put(self, "periodic_indices", tuple(int(i) for i in self.periodic_indices))
+        for name, shape in (("Q", (n, n)), ("Qf", (n, n)), ("R", (m, m)), ("u_ref", (m,)),
+                            ("goal_tolerance", (n,))):
+            if getattr(self, name).shape != shape:
+                raise ValueError(f"Task: {name} must have shape {shape} (goal has {n} "
+                                 f"components, R is {m} x {m}), got "
+                                 f"{getattr(self, name).shape}")
+        if np.any(np.isnan(self.goal_tolerance)) or np.any(self.goal_tolerance < 0):
+            raise ValueError(f"Task: goal_tolerance must be >= 0 (inf: not checked), got "
+                             f"{self.goal_tolerance}")
+        if any(not 0 <= i < n for i in self.periodic_indices):
+            raise ValueError(f"Task: periodic_indices must be in [0, {n}), got "
+                             f"{self.periodic_indices}")
+        if not (np.isfinite(self.hold_time) and self.hold_time >= 0):
+            raise ValueError(f"Task: hold_time must be a number of seconds >= 0, got "
+                             f"{self.hold_time!r}")
+        if not (np.isfinite(self.duration) and self.duration > 0):
+            raise ValueError(f"Task: duration must be a positive number of seconds, got "
+                             f"{self.duration!r}")
+        for name in ("stage", "terminal"):
+            if getattr(self, name) is not None and not callable(getattr(self, name)):
+                raise ValueError(f"Task: {name} must be a function of CasADi symbols or None")
+
+    def check_sizes(self, n: int, m: int, owner: str = "Task") -> None:
+        """Raise ``ValueError`` unless this task is for n states and m controls (and its extra
+        costs give scalars on CasADi symbols of those sizes)."""
+        if (self.goal.size, self.u_ref.size) != (n, m):
+            raise ValueError(f"{owner}: the task is for {self.goal.size} states and "
+                             f"{self.u_ref.size} controls, the model has {n} and {m}")
+        x, u = ca.SX.sym("x", n), ca.SX.sym("u", m)
+        for name, args in (("stage", (x, u)), ("terminal", (x,))):
+            fn = getattr(self, name)
+            if fn is None:
+                continue
+            try:
+                shape = ca.SX(fn(*args)).shape
+            except Exception as err:  # any failure of a user's function
+                raise ValueError(f"{owner}: the task's {name} cost failed on CasADi symbols: "
+                                 f"{type(err).__name__}: {err}") from err
+            if shape != (1, 1):
+                raise ValueError(f"{owner}: the task's {name} cost must be a scalar, got shape "
+                                 f"{shape}")
+
+    def _extra(self, name: str, *args: np.ndarray) -> float:
+        """The extra cost ``name`` evaluated numerically (compiled once per function)."""
+        fn = getattr(self, name)
+        key = (fn, *(np.size(a) for a in args))
+        if key not in _COST_CACHE:
+            syms = [ca.SX.sym(f"a{i}", int(np.size(a))) for i, a in enumerate(args)]
+            _COST_CACHE[key] = ca.Function(name, syms, [fn(*syms)])
+        return float(_COST_CACHE[key](*[np.asarray(a, float).reshape(-1) for a in args]))
 
     def error(self, x: np.ndarray | ca.SX | ca.MX) -> np.ndarray | ca.SX | ca.MX:
         """``e = x - goal`` with periodic components wrapped; (n,) numeric or (n, 1) symbolic."""
@@ -135,19 +219,25 @@ class Task:
     def stage_cost(self, x: np.ndarray, u: np.ndarray) -> float | ca.SX:
         """``l(x, u)`` (see class doc); numeric for arrays, symbolic for CasADi inputs."""
         if isinstance(x, (ca.SX, ca.MX)) or isinstance(u, (ca.SX, ca.MX)):
-            e = self.error(x if isinstance(x, (ca.SX, ca.MX)) else ca.DM(x))
+            xs = x if isinstance(x, (ca.SX, ca.MX)) else ca.DM(x)
+            e = self.error(xs)
             du = u - ca.DM(self.u_ref)
-            return ca.bilin(ca.DM(self.Q), e, e) + ca.bilin(ca.DM(self.R), du, du)
+            cost = ca.bilin(ca.DM(self.Q), e, e) + ca.bilin(ca.DM(self.R), du, du)
+            return cost + self.stage(xs, u) if self.stage is not None else cost
         e = self.error(x)
         du = np.asarray(u, dtype=float) - self.u_ref
-        return float(e @ self.Q @ e + du @ self.R @ du)
+        cost = float(e @ self.Q @ e + du @ self.R @ du)
+        return cost + self._extra("stage", x, u) if self.stage is not None else cost
 
     def terminal_cost(self, x: np.ndarray | ca.SX | ca.MX) -> float | ca.SX:
-        """``e' Qf e`` for a controller's horizon end; numeric or symbolic like :meth:`error`."""
+        """``e' Qf e + terminal(x)`` for a controller's horizon end; numeric or symbolic like
+        :meth:`error`."""
         e = self.error(x)
         if isinstance(e, (ca.SX, ca.MX)):
-            return ca.bilin(ca.DM(self.Qf), e, e)
-        return float(e @ self.Qf @ e)
+            cost = ca.bilin(ca.DM(self.Qf), e, e)
+            return cost + self.terminal(x) if self.terminal is not None else cost
+        cost = float(e @ self.Qf @ e)
+        return cost + self._extra("terminal", x) if self.terminal is not None else cost
 
     def at_goal(self, x: np.ndarray) -> bool:
         """True when every component is within ``goal_tolerance`` of the goal (errors wrapped)."""
@@ -160,24 +250,39 @@ class Task:
         return float(np.linalg.norm(self.error(x)[checked]))
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class ControlModel:
     """A physical model with one set of parameter values, bounds and a task.
 
+    Built by keyword, from your own CasADi ODE as from a physics module of
+    :mod:`gp_envs.physics` (:meth:`from_physics`)::
+
+        model = ControlModel(
+            name="my_swing", ode=lambda x, u, p: ca.vertcat(x[1], p[0] * ca.sin(x[0]) + u[0]),
+            params={"a": 15.0}, state_names=("theta", "thetadot"), control_names=("torque",),
+            dt=0.05, u_lb=[-2.0], u_ub=[2.0],
+            task=Task(goal=[0.0, 0.0], Q=np.diag([1.0, 0.1]), R=[[1e-3]],
+                      goal_tolerance=[0.1, np.inf], hold_time=1.0, duration=10.0))
+
     Immutable; it pickles and deep-copies (the compiled CasADi functions it caches are not
-    copied but rebuilt on first use, so a copy evaluates exactly like the original).
+    copied but rebuilt on first use, so a copy evaluates exactly like the original; an ``ode``
+    that is a lambda or a local function does not pickle, a module-level function does).
 
     Attributes:
-        name: system name (``"cartpole"``, ``"quadrotor"``, ``"dubins"``).
-        ode: the physics, ``ode(x, u, p) -> xdot`` in CasADi operations.
-        param_names: names of the entries of ``p``, in order (the paper's symbols).
+        name: the model's own name (``"cartpole"``, ``"my_swing"``); the controllers look
+            their per-system defaults up by it.
+        ode: the physics, ``ode(x, u, p) -> xdot`` in CasADi operations: state (n,), control
+            (m,), parameters (k,) in the order of ``param_names``; returns (n,).
         params: parameter values by name (read-only mapping). Each must be a real number
             inside its range in ``param_ranges``; construction (and so :meth:`with_params`)
             raises ``ValueError`` otherwise, naming the parameter, its value and its range.
-        state_names: (n,) names of the state components, in the paper's order.
+        param_names: names of the entries of ``p``, in order (default: the order of
+            ``params``).
+        state_names: (n,) names of the state components.
         control_names: (m,) names of the control components.
-        dt: control period in seconds (zero-order hold).
-        x_lb, x_ub: (n,) state bounds (``-inf``/``inf`` where unbounded).
+        dt: control period in seconds (zero-order hold): one env step.
+        x_lb, x_ub: (n,) planning state bounds (``-inf``/``inf`` where unbounded; default
+            unbounded). The box a controller keeps to; an env's termination rule is its own.
         u_lb, u_ub: (m,) control bounds.
         task: the control task.
         substeps: RK4 substeps per control period used by :meth:`step`.
@@ -185,46 +290,125 @@ class ControlModel:
         dynamic_indices: indices of the components whose rates come from forces (accelerations,
             or for a kinematic vehicle its actuated rates), as opposed to kinematic identities
             such as ``d(x)/dt = xdot`` that no parameter can make wrong. A learned residual
-            belongs on these.
+            belongs on these. Default (None): every component.
         param_ranges: valid range of each parameter (:class:`~gp_envs.physics.ParamRange`,
             read-only mapping). Default: the ``PARAM_RANGES`` table of the module that defines
-            ``ode`` (every :mod:`gp_envs.physics` module has one).
+            ``ode`` (every :mod:`gp_envs.physics` module has one), else any finite real number.
+
+    Raises:
+        ValueError: (at construction) parameter values outside their ranges; names, bounds,
+            indices or task of sizes that do not match; a lower bound above an upper one; a
+            non-positive ``dt`` or ``substeps``; an ``ode`` whose output is not (n,) for
+            (n,) states, (m,) controls and (k,) parameters.
     """
 
     name: str
     ode: OdeFn
-    param_names: tuple[str, ...]
     params: Mapping[str, float]
     state_names: tuple[str, ...]
     control_names: tuple[str, ...]
     dt: float
-    x_lb: np.ndarray
-    x_ub: np.ndarray
     u_lb: np.ndarray
     u_ub: np.ndarray
     task: Task
+    param_names: tuple[str, ...] = ()
+    x_lb: np.ndarray | None = None
+    x_ub: np.ndarray | None = None
     substeps: int = 10
     angle_indices: tuple[int, ...] = ()
-    dynamic_indices: tuple[int, ...] = ()
+    dynamic_indices: tuple[int, ...] | None = None
     param_ranges: Mapping[str, ParamRange] | None = field(default=None, repr=False)
     _fns: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
+        name = self.name
+        if not (isinstance(name, str) and name):
+            raise ValueError(f"ControlModel: name must be a non-empty string, got {name!r}")
+        if not callable(self.ode):
+            raise ValueError(f"{name}: ode must be a function ode(x, u, p) -> xdot")
+        put = object.__setattr__
+        put(self, "state_names", tuple(str(v) for v in self.state_names))
+        put(self, "control_names", tuple(str(v) for v in self.control_names))
+        put(self, "param_names", tuple(self.param_names) or tuple(self.params))
+        n, m = len(self.state_names), len(self.control_names)
+        if n < 1 or m < 1:
+            raise ValueError(f"{name}: a model needs at least one state and one control, got "
+                             f"{n} state names and {m} control names")
+        for field_name, size, default in (("x_lb", n, -np.inf), ("x_ub", n, np.inf),
+                                          ("u_lb", m, None), ("u_ub", m, None)):
+            value = getattr(self, field_name)
+            if value is None and default is not None:
+                value = np.full(size, default)
+            try:
+                array = np.asarray(value, dtype=float).reshape(-1)
+            except (TypeError, ValueError):
+                raise ValueError(f"{name}: {field_name} must be {size} numbers, got "
+                                 f"{value!r}") from None
+            if array.shape != (size,) or np.any(np.isnan(array)):
+                raise ValueError(f"{name}: {field_name} must be {size} numbers (not NaN), got "
+                                 f"{value!r}")
+            put(self, field_name, array)
+        for low, high in (("x_lb", "x_ub"), ("u_lb", "u_ub")):
+            if np.any(getattr(self, low) > getattr(self, high)):
+                raise ValueError(f"{name}: {low} {getattr(self, low)} exceeds {high} "
+                                 f"{getattr(self, high)}")
+        if not (isinstance(self.dt, (int, float, np.floating)) and not isinstance(self.dt, bool)
+                and np.isfinite(self.dt) and self.dt > 0):
+            raise ValueError(f"{name}: dt must be a positive number of seconds, got {self.dt!r}")
+        put(self, "dt", float(self.dt))
+        if isinstance(self.substeps, bool) or not isinstance(self.substeps, (int, np.integer)) \
+                or self.substeps < 1:
+            raise ValueError(f"{name}: substeps must be an integer >= 1, got {self.substeps!r}")
+        dynamic = tuple(range(n)) if self.dynamic_indices is None else self.dynamic_indices
+        for field_name, indices in (("angle_indices", self.angle_indices),
+                                    ("dynamic_indices", dynamic)):
+            indices = tuple(int(i) for i in indices)
+            if any(not 0 <= i < n for i in indices) or len(set(indices)) != len(indices):
+                raise ValueError(f"{name}: {field_name} must be distinct indices in [0, {n}), "
+                                 f"got {indices}")
+            put(self, field_name, indices)
+        if not isinstance(self.task, Task):
+            raise ValueError(f"{name}: task must be a gp_envs Task, got "
+                             f"{type(self.task).__name__}")
+        self.task.check_sizes(n, m, owner=name)
         ranges = self.param_ranges
         if ranges is None:
             ranges = getattr(inspect.getmodule(self.ode), "PARAM_RANGES", None)
             if ranges is None:
-                raise ValueError(f"{self.name}: pass param_ranges; the module of ode "
-                                 f"{getattr(self.ode, '__qualname__', self.ode)!r} has no "
-                                 f"PARAM_RANGES table")
+                ranges = {k: ANY_REAL for k in self.param_names}
         if set(ranges) != set(self.param_names):
-            raise ValueError(f"{self.name}: param_ranges must cover exactly "
+            raise ValueError(f"{name}: param_ranges must cover exactly "
                              f"{list(self.param_names)}, got {list(ranges)}")
         ranges = {k: ranges[k] for k in self.param_names}
-        object.__setattr__(self, "param_ranges", ReadOnlyMapping(ranges))
+        put(self, "param_ranges", ReadOnlyMapping(ranges))
         # the one check of parameter values (see gp_envs.physics.ranges)
-        object.__setattr__(self, "params", ReadOnlyMapping(check_params(self.name, ranges,
-                                                                        self.params)))
+        put(self, "params", ReadOnlyMapping(check_params(name, ranges, self.params)))
+        _check_ode(self.ode, n, m, len(self.param_names), name)
+
+    @classmethod
+    def from_physics(cls, physics: Any, params: Mapping[str, float] | None = None, *,
+                     dt: float, u_lb: Sequence[float], u_ub: Sequence[float], task: Task,
+                     name: str | None = None, **fields: Any) -> ControlModel:
+        """A model of a physics module of :mod:`gp_envs.physics` (or a module laid out like
+        one: ``ode``, ``PARAM_RANGES``, ``STATE_NAMES``, ``CONTROL_NAMES``) with your own
+        parameter values, bounds and task, in one call.
+
+        Args:
+            physics: the module, e.g. :mod:`gp_envs.physics.cartpole`.
+            params: parameter values by name; every parameter of the module.
+            dt, u_lb, u_ub, task: as the class's attributes.
+            name: the model's name (default: the module's short name).
+            **fields: any other attribute (``x_lb``, ``x_ub``, ``substeps``,
+                ``angle_indices``, ``dynamic_indices``).
+
+        Raises:
+            ValueError: as the constructor.
+        """
+        return cls(name=name or physics.__name__.rsplit(".", 1)[-1], ode=physics.ode,
+                   params=dict(params or {}), param_names=tuple(physics.PARAM_NAMES),
+                   state_names=tuple(physics.STATE_NAMES),
+                   control_names=tuple(physics.CONTROL_NAMES), dt=dt, u_lb=u_lb, u_ub=u_ub,
+                   task=task, param_ranges=physics.PARAM_RANGES, **fields)
 
     # ----------------------------------------------------------------- pickling
     def __getstate__(self) -> dict[str, Any]:
@@ -304,7 +488,7 @@ class ControlModel:
         if "f_embedded" not in self._fns:
             x, u, _ = self._symbols()
             self._fns["f_embedded"] = ca.Function(
-                f"{self.name}_f", [x, u], [self.ode(x, u, ca.DM(self.param_vector))],
+                "f", [x, u], [self.ode(x, u, ca.DM(self.param_vector))],
                 ["x", "u"], ["xdot"])
         return self._fns["f_embedded"]
 
@@ -364,6 +548,27 @@ class ControlModel:
 
 
 _FUNCTION_CACHE: dict[tuple, dict[str, ca.Function]] = {}
+_COST_CACHE: dict[tuple, ca.Function] = {}
+_CHECKED_ODES: set[tuple[Any, int, int, int]] = set()
+
+
+def _check_ode(ode: OdeFn, n: int, m: int, k: int, name: str) -> None:
+    """``ode`` evaluated once on CasADi symbols of these sizes gives an (n,) expression (checked
+    once per ode and sizes)."""
+    key = (ode, n, m, k)
+    if key in _CHECKED_ODES:
+        return
+    x, u, p = ca.SX.sym("x", n), ca.SX.sym("u", m), ca.SX.sym("p", k)
+    try:
+        out = ode(x, u, p)
+        shape = ca.SX(out).shape
+    except Exception as err:  # any failure of a user's function
+        raise ValueError(f"{name}: ode(x, u, p) failed on CasADi symbols of sizes ({n},), "
+                         f"({m},), ({k},): {type(err).__name__}: {err}") from err
+    if shape not in ((n, 1), (1, n)):
+        raise ValueError(f"{name}: ode(x, u, p) must return {n} components (one per state), "
+                         f"got shape {shape}")
+    _CHECKED_ODES.add(key)
 
 
 def rk4(rate: Callable[[ca.SX], ca.SX], x: ca.SX, duration: float, substeps: int) -> ca.SX:

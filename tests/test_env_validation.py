@@ -330,7 +330,7 @@ def test_dubins_nominal_draws_are_clipped_below_one():
     assert abs(below - 0.1587) < 3 * np.sqrt(0.1587 * 0.8413 / draws.size)
 
 
-def test_control_model_for_an_ode_without_a_range_table_needs_param_ranges():
+def test_control_model_for_an_ode_without_a_range_table_takes_any_finite_value():
     from gp_envs.physics import ParamRange
 
     nominal = make("gp_envs/DubinsObstacle-v0").unwrapped.nominal_model
@@ -341,8 +341,12 @@ def test_control_model_for_an_ode_without_a_range_table_needs_param_ranges():
     def ode(x, u, p):  # defined in this test module, which has no PARAM_RANGES
         return ca.vertcat(u[0], u[1], p[0] * p[1])
 
-    with pytest.raises(ValueError, match="param_ranges"):
-        gp_envs.ControlModel(**fields, ode=ode, params={"b1": 0.1, "b2": 0.2})
+    # a user's ODE, no table: any finite real number, never NaN or inf
+    free = gp_envs.ControlModel(**fields, ode=ode, params={"b1": -3.0, "b2": 0.2})
+    np.testing.assert_allclose(free.f(np.zeros(3), [2.0, 3.0]), [2.0, 3.0, -0.6], rtol=1e-15)
+    for bad in (np.nan, np.inf, "1.0"):
+        with pytest.raises(ValueError, match="parameter b1"):
+            free.with_params(b1=bad)
     unit = ParamRange(0.0, 1.0, True, True, "a test weight, dimensionless")
     ranges = {"b1": unit, "b2": unit}
     model = gp_envs.ControlModel(**fields, ode=ode, params={"b1": 1.0, "b2": 0.0},

@@ -24,6 +24,7 @@ import casadi as ca
 import gymnasium as gym
 
 from gp_envs.model import ControlModel, OdeFn
+from gp_envs.wrapper import nominal_model
 
 __all__ = ["BlackBoxModel", "KinematicOde", "blackbox_model"]
 
@@ -84,7 +85,7 @@ class BlackBoxModel:
         self._model: ControlModel | None = None
 
     def __call__(self) -> ControlModel:
-        nominal = self.env.unwrapped.nominal_model
+        nominal = nominal_model(self.env)
         if nominal is not self._nominal or self._model is None:
             self._nominal, self._model = nominal, blackbox_model(nominal)
         return self._model

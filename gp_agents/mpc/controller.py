@@ -52,6 +52,7 @@ from gp_agents.mpc.settings import RTI, Converged, Residual, scheme_settings
 from gp_agents.mpc.tuning import rti_tuning
 from gp_agents.residual import ResidualModel
 from gp_envs.model import ControlModel
+from gp_envs.wrapper import nominal_model
 
 LEARNED_TERMS: dict[str, type[LearnedTerm]] = {"exact": GPInNLP, "linearized": LinearizedGP,
                                                "linearized-pattern": PatternLinearizedGP,
@@ -117,7 +118,7 @@ class EnvNominalModel:
         self.env = env
 
     def __call__(self) -> ControlModel:
-        return self.env.unwrapped.nominal_model
+        return nominal_model(self.env)
 
 
 class PseudospectralMPC:
@@ -292,13 +293,11 @@ class PseudospectralMPC:
             env: a ``gp_envs`` environment.
             learner: see the class doc.
             model_source: where the model comes from at each ``act`` instead of
-                ``env.unwrapped.nominal_model`` (a benchmark's oracle passes
+                the env's nominal model (a benchmark's oracle passes
                 ``lambda: gp_envs.oracle_model(env)``).
             **settings: keyword settings of the class.
         """
-        base = env.unwrapped
-        if not hasattr(base, "nominal_model"):
-            raise TypeError("from_env needs a gp_envs environment (with a nominal_model)")
+        nominal_model(env)  # raises TypeError, saying how to give the env a model
         source = model_source or EnvNominalModel(env)
         agent = cls(source(), learner, **settings)
         agent._model_source = source

@@ -119,7 +119,7 @@ def _recipe_scheme(recipe: str, env: gym.Env, scheme: str | Converged | RTI,
     resolved = scheme_settings(scheme)
     if not isinstance(resolved, RTI):
         return scheme
-    tuning = rti_tuning(env.unwrapped.nominal_model)
+    tuning = rti_tuning(gp_envs.nominal_model(env))
     named = {*tuning.recipe_levenberg_marquardt, *tuning.recipe_recovery_iterations}
     if named - set(RECIPES):
         raise ValueError(f"the RTI tuning of this system names unknown recipe(s) "
@@ -139,7 +139,8 @@ def make_mpc(env: gym.Env, recipe: str = DEFAULT_RECIPE, *,
     """The MPC of recipe ``recipe`` (:data:`RECIPES`) for ``env``'s nominal model and task.
 
     Args:
-        env: a ``gp_envs`` environment (``gym.make``).
+        env: a ``gp_envs`` environment (``gym.make``), or any Gymnasium env given a nominal
+            model by :func:`gp_envs.wrap` (found through the wrapper chain).
         recipe: ``"robust"`` (default), ``"paper"``, ``"nominal"``, ``"oracle"`` or
             ``"blackbox"``.
         scheme: ``"converged"`` (default), ``"rti"``, ``"rti-split"`` or a
@@ -153,16 +154,14 @@ def make_mpc(env: gym.Env, recipe: str = DEFAULT_RECIPE, *,
 
     Raises:
         ValueError: an unknown recipe; a learner given to a recipe that learns nothing.
-        TypeError: not a ``gp_envs`` environment.
+        TypeError: an env without a nominal model.
 
     Example::
 
         env = gym.make("gp_envs/CartPoleSwingUp-v0", scenario="online")
         agent = make_mpc(env).pretrain(collect_initial_data(env, 200, seed=0))
     """
-    if not hasattr(env.unwrapped, "nominal_model"):
-        raise TypeError(f"make_mpc needs a gp_envs environment (with a nominal_model), got "
-                        f"{type(env.unwrapped).__name__}")
+    gp_envs.nominal_model(env)  # raises TypeError, saying how to give the env a model
     settings = recipe_settings(recipe, scheme)
     if "learner" in overrides and settings["learner"] is None and overrides["learner"] is not None:
         raise ValueError(f"recipe {recipe!r} learns nothing: it takes no learner (the learning "
