@@ -378,7 +378,8 @@ def _list_controllers(aliases: bool = False) -> str:
     lines.append("envs (scenarios, default first):")
     for name, e in ENVS.items():
         others = [s for s in e.scenarios if s != e.default_scenario]
-        lines.append(f"  {name:18s} {e.env_id}: {', '.join([e.default_scenario, *others])}")
+        where = e.env_id or f"outside: {e.outside.description}"
+        lines.append(f"  {name:18s} {where}: {', '.join([e.default_scenario, *others])}")
     return "\n".join(lines)
 
 

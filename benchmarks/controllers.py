@@ -38,6 +38,8 @@ from typing import Any
 import gymnasium as gym
 
 from benchmarks import USER_MODELS_DIR
+from benchmarks.outside_envs import OUTSIDE_ENVS, OutsideEnv
+from benchmarks.systems import benchmark_system
 from gp_agents.mpc import RECIPES, Converged, Episodic, GPInNLP, Residual, make_mpc
 from gp_agents.mpc.controller import default_learned_dynamics
 from gp_agents.mpc.recipes import OracleModel, recipe_settings
@@ -55,30 +57,39 @@ N_INITIAL_POINTS = 200
 
 @dataclass(frozen=True)
 class EnvInfo:
-    """A benchmark env: registered id and the scenarios the suite runs."""
+    """A benchmark env: registered id (None for an outside env) and the scenarios the suite
+    runs; ``outside``: the outside simulator's entry (:mod:`benchmarks.outside_envs`), or None
+    for a ``gp_envs`` system."""
 
-    env_id: str
+    env_id: str | None
     scenarios: tuple[str, ...]
     default_scenario: str
+    outside: OutsideEnv | None = None
 
 
 class _BenchmarkEnvs(Mapping[str, EnvInfo]):
-    """The registered systems (:data:`gp_envs.SYSTEMS`) as benchmark envs, by short name (live:
-    a system registered after import is a benchmark env too)."""
+    """The registered systems (:data:`gp_envs.SYSTEMS`) and the outside envs
+    (:data:`benchmarks.outside_envs.OUTSIDE_ENVS`) as benchmark envs, by short name (live: a
+    system registered after import is a benchmark env too)."""
 
     def __getitem__(self, name: str) -> EnvInfo:
+        if name in OUTSIDE_ENVS:
+            outside = OUTSIDE_ENVS[name]
+            return EnvInfo(None, tuple(outside.scenarios), outside.default_scenario, outside)
         system = SYSTEMS[name]
-        return EnvInfo(system.env_id, system.scenarios, system.default_scenario)
+        scenarios = benchmark_system(name).scenarios or system.scenarios
+        return EnvInfo(system.env_id, scenarios, system.default_scenario)
 
     def __iter__(self) -> Iterator[str]:
-        return iter(SYSTEMS)
+        return iter([*SYSTEMS, *OUTSIDE_ENVS])
 
     def __len__(self) -> int:
-        return len(SYSTEMS)
+        return len(SYSTEMS) + len(OUTSIDE_ENVS)
 
 
 ENVS: Mapping[str, EnvInfo] = _BenchmarkEnvs()
-"""Benchmark envs by short name: every registered system (:func:`gp_envs.register_system`)."""
+"""Benchmark envs by short name: every registered system (:func:`gp_envs.register_system`) and
+every outside env (:mod:`benchmarks.outside_envs`)."""
 
 
 @dataclass(frozen=True)
@@ -407,9 +418,34 @@ def rl_model_dir(env: str, algo: str, models: str | Path | None = None) -> Path:
 
 def make_env(env: str, scenario: str, **options: Any) -> gym.Env:
     """``gym.make`` of a benchmark env (short name) in ``scenario``; ``options`` are the env's
-    other keyword arguments (``randomize``, ``observation_noise``, ``true_params``, ...)."""
+    other keyword arguments (``randomize``, ``observation_noise``, ``true_params``, ...).
+
+    Raises:
+        ValueError: for an outside env (:mod:`benchmarks.outside_envs`), any option that would
+            change its truth or its observations (its simulator's truth is its own: none
+            applies; zeros and the defaults are fine).
+    """
     check_env_scenario(env, scenario)
-    return gym.make(ENVS[env].env_id, scenario=scenario, **options)
+    info = ENVS[env]
+    if info.outside is not None:
+        given = {k: v for k, v in options.items()
+                 if v is not None and v is not False and not (k == "time_varying" and v)
+                 and not (isinstance(v, (int, float)) and v == 0)}
+        if given:
+            raise ValueError(f"env {env} is an outside simulator ({info.outside.description}): "
+                             f"{', '.join(sorted(given))} cannot apply to it (its truth is "
+                             f"its own; use a gp_envs env to randomize, change or hide one)")
+        return info.outside.make(scenario)
+    return gym.make(info.env_id, scenario=scenario, **options)
+
+
+def scenario_changes(env: str, scenario: str) -> tuple[Any, ...]:
+    """The step changes of the truth in ``scenario`` of benchmark env ``env``
+    (:class:`gp_envs.base.ParamChange`; none for an outside env, whose truth is its own)."""
+    check_env_scenario(env, scenario)
+    if ENVS[env].outside is not None:
+        return ()
+    return tuple(SYSTEMS[env].env_class().SCENARIOS[scenario].changes)
 
 
 def make_learner(kind: str, parametric_columns: tuple[int, ...] = ()) -> Any:

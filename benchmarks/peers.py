@@ -8,7 +8,7 @@ in lockstep in the same process (one step of each in turn, on two envs reset wit
 - dynamics: the env's nominal model, ``model.casadi_function()`` (CasADi SX);
 - cost: ``integral of l(x, u) dt + e' Qf e`` with the task's ``Q``, ``R``, ``Qf`` and goal (do-mpc
   sums ``lterm`` once per interval, so ``lterm = dt * l``; the angle error is wrapped in both);
-- horizon: the system's registered default (:class:`gp_envs.systems.PlanningDefaults`; 1.5 s
+- horizon: the system's registered default (:class:`gp_agents.defaults.PlanningDefaults`; 1.5 s
   for the cart pole);
 - bounds: the control box, and the state box shrunk by the same ``state_margin`` (5% of each
   finite half-range) that the pseudospectral MPC uses;
@@ -140,12 +140,12 @@ def _summary(ep: Episode) -> dict[str, Any]:
 def run_peers(spec: TrialSpec) -> dict[str, Any]:
     """One episode each of the pseudospectral MPC and do-mpc on ``spec.env``/``scenario``."""
     from gp_agents import PseudospectralMPC
-    from gp_envs.systems import system_of
+    from gp_agents.defaults import default_planning
 
     env = make_env(spec.env, spec.scenario)
     env.reset(seed=spec.seed)
     model = env.unwrapped.nominal_model
-    horizon = float(system_of(model).planning.horizon)
+    horizon = float(default_planning(model).horizon)
     ps = PseudospectralMPC.from_env(env, horizon=horizon)
     env_rti = make_env(spec.env, spec.scenario)
     rti_agent = PseudospectralMPC.from_env(env_rti, horizon=horizon, scheme="rti")

@@ -42,8 +42,17 @@ from matplotlib.ticker import (
     NullLocator,
 )
 
+import gp_envs
 from benchmarks.compute import STEP_SCALING
-from benchmarks.controllers import CONTROLLERS, ENVS, MODELS_DIR, RL_ALGORITHMS, learned_term
+from benchmarks.controllers import (
+    CONTROLLERS,
+    ENVS,
+    MODELS_DIR,
+    RL_ALGORITHMS,
+    learned_term,
+    make_env,
+    scenario_changes,
+)
 from benchmarks.presets import MPC_BASES, Experiment, Preset
 from benchmarks.runner import load_arrays, load_record, trial_path
 from benchmarks.styles import EPISODIC, RTI, WARM_DUALS, Style, axis_label, style
@@ -144,26 +153,26 @@ def _env_model(env: str, scenario: str) -> Any:
     """The nominal :class:`gp_envs.ControlModel` of benchmark env ``env`` in ``scenario``
     (its ``dt``, names and task; the Dubins nominal parameters redrawn at each reset do not
     matter here)."""
-    import gymnasium as gym
 
-    made = gym.make(ENVS[env].env_id, scenario=scenario)
+    made = make_env(env, scenario)
     try:
-        return made.unwrapped.nominal_model
+        return gp_envs.nominal_model(made)
     finally:
         made.close()
 
 
 @functools.cache
-def _system(env: str) -> str:
-    """The physics module's short name of benchmark env ``env`` (the key of
-    :func:`benchmarks.styles.unit`)."""
-    import gymnasium as gym
+def _system(env: str) -> str | None:
+    """The registered system whose physics benchmark env ``env`` plans with (the key of
+    :func:`benchmarks.styles.unit`): the env's own, or for an outside env the system of its
+    nominal model's physics module (None: a user's ODE, whose units are not known)."""
+    from gp_envs.systems import SYSTEMS
 
-    made = gym.make(ENVS[env].env_id)
-    try:
-        return str(made.unwrapped.physics.__name__).rsplit(".", 1)[-1]
-    finally:
-        made.close()
+    if ENVS[env].outside is None:
+        return env
+    module = getattr(_env_model(env, ENVS[env].default_scenario).ode, "__module__", "")
+    name = module.rsplit(".", 1)[-1]
+    return name if module.startswith("gp_envs.physics.") and name in SYSTEMS else None
 
 
 def _control_period_line(ax: Any, dt: float) -> Any:
@@ -281,7 +290,7 @@ def _write_csv(path: Path, columns: Sequence[str], rows: Iterable[dict[str, Any]
 
 
 def _env_title(env: str, scenario: str) -> str:
-    return f"{ENVS[env].env_id} ({scenario})"
+    return f"{ENVS[env].env_id or env} ({scenario})"
 
 
 def _save(fig: Any, out_dir: Path, name: str) -> str:
@@ -744,7 +753,7 @@ def step_times_figure(groups: dict[str, dict[str, list[np.ndarray]]], scenarios:
                       ha="right", fontsize=8)
         ax.set_yscale("log")
         ax.set_ylabel("act() time per step (ms)")
-        ax.set_title(ENVS[env].env_id, fontsize=9)
+        ax.set_title(ENVS[env].env_id or env, fontsize=9)
         ax.grid(alpha=0.3, axis="y")
         ax.legend(handles=[period], fontsize=7, loc="best")
     controllers = {c for per in groups.values() for c in per}
@@ -1442,9 +1451,7 @@ def _time_varying(row: dict[str, Any]) -> bool:
 
 @functools.cache
 def _env_model_changes(env: str, scenario: str) -> tuple[Any, ...]:
-    from gp_envs.systems import get_system
-
-    return tuple(get_system(env).env_class().SCENARIOS[scenario].changes)
+    return scenario_changes(env, scenario)
 
 
 SECTIONS: dict[str, SectionFn] = {

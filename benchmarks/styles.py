@@ -177,6 +177,7 @@ def unit(system: str, name: str) -> str:
         raise KeyError(f"{system} has no state or control {name!r} (so no unit)") from None
 
 
-def axis_label(system: str, name: str) -> str:
-    """``"name (unit)"`` for an axis showing state or control ``name`` of ``system``."""
-    return f"{name} ({unit(system, name)})"
+def axis_label(system: str | None, name: str) -> str:
+    """``"name (unit)"`` for an axis showing state or control ``name`` of ``system`` (None: a
+    model of unknown units, ``"name"``)."""
+    return name if system is None else f"{name} ({unit(system, name)})"

@@ -28,6 +28,7 @@ import numpy as np
 import gp_envs
 from benchmarks.controllers import (
     CONTROLLERS,
+    ENVS,
     N_INITIAL_POINTS,
     BuiltController,
     ControllerUnavailableError,
@@ -35,10 +36,11 @@ from benchmarks.controllers import (
     check_env_scenario,
     check_name,
     make_env,
+    scenario_changes,
 )
+from benchmarks.systems import benchmark_system
 from gp_agents.agent import rollout
 from gp_agents.mpc import Constraints
-from gp_envs.systems import get_system
 
 DISTRIBUTION = "gp-pseudospectral-mpc"
 """The distribution (``pip install`` name) of this package, for :func:`code_version`."""
@@ -248,7 +250,7 @@ def _episode_result(spec: TrialSpec, env: Any, built: BuiltController,
     """Run the episode of ``built`` on ``env``: ``{"metrics", "arrays", "episode"}``."""
     recipe = CONTROLLERS[spec.controller]
     agent = built.agent
-    goal = np.asarray(env.unwrapped.nominal_model.task.goal, float)
+    goal = np.asarray(gp_envs.nominal_model(env).task.goal, float)
     t_episode = time.perf_counter()
     episode = rollout(env, agent, spec.seed, options=options, max_steps=spec.max_steps)
     episode_s = time.perf_counter() - t_episode
@@ -263,9 +265,11 @@ def _episode_result(spec: TrialSpec, env: Any, built: BuiltController,
         termination = "time limit"
     else:
         termination = "max steps"
-    final = gp_envs.oracle_state(env)  # the true final state (observations may be noisy)
+    # the true final state (observations may be noisy; an outside env's are exact)
+    final = (observations[-1] if ENVS[spec.env].outside is not None
+             else gp_envs.oracle_state(env))
     position_error = float("nan")
-    k = get_system(spec.env).position_dims
+    k = benchmark_system(spec.env).position_dims
     if k:
         position_error = float(np.linalg.norm(final[:k] - goal[:k]))
     recovery = _recovery_time(env, spec, observations, times, goal)
@@ -277,7 +281,7 @@ def _episode_result(spec: TrialSpec, env: Any, built: BuiltController,
     at_goal_final = bool(info.get("at_goal", False))
     learning = recipe.learner is not None
     data_steps = built.prior_data_steps + (steps if is_mpc else 0)
-    dt = float(env.unwrapped.nominal_model.dt)
+    dt = float(gp_envs.nominal_model(env).dt)
     since = info.get("at_goal_since")
     metrics: dict[str, Any] = {
         "family": recipe.family,
@@ -293,6 +297,8 @@ def _episode_result(spec: TrialSpec, env: Any, built: BuiltController,
         "interaction_s": interaction_time(built.prior_data_steps if learning else 0, dt, info)
         if not episodic else float("nan"),
         "cost": episode.cost,
+        # the env's own return (gp_envs envs: minus the cost; an outside env's reward is its own)
+        "return": float(np.sum(episode.rewards)),
         "final_distance": float(info.get("distance_to_goal", np.nan)),
         "final_position_error": position_error,
         "recovery_s": recovery,
@@ -374,7 +380,7 @@ def run_trials(spec: TrialSpec) -> dict[str, Any]:
     first = _episode_result(spec, env, built, options, time.perf_counter() - t_build)
     metrics, arrays = dict(first["metrics"]), dict(first["arrays"])
     episode = first["episode"]
-    dt = float(env.unwrapped.nominal_model.dt)
+    dt = float(gp_envs.nominal_model(env).dt)
     learning = recipe.learner is not None
     data = built.data
     initial = len(data) if data is not None else 0
@@ -424,8 +430,8 @@ def _recovery_time(env: Any, spec: TrialSpec, observations: np.ndarray, times: n
         observations: (T + 1, n) observed states (t = 0 first). times: (T,) the time after
             each step, s. goal: (n,) the goal state.
     """
-    changes = env.unwrapped.SCENARIOS[spec.scenario].changes
-    k = get_system(spec.env).position_dims
+    changes = scenario_changes(spec.env, spec.scenario)
+    k = benchmark_system(spec.env).position_dims
     if not changes or not k or spec.cell.noise:
         return float("nan")
     t = np.concatenate([[0.0], times])
@@ -442,10 +448,10 @@ def _start_options(env: Any, spec: TrialSpec) -> dict[str, Any] | None:
     if spec.cell.start == "default":
         return None
     env.reset(seed=spec.seed)  # the env's own start for this seed, then a seeded offset
-    width = get_system(spec.env).perturbation
+    width = benchmark_system(spec.env).perturbation
     if width is None:
-        raise ValueError(f"system {spec.env!r} registers no perturbation widths: no perturbed "
-                         f"start")
+        raise ValueError(f"system {spec.env!r} has no perturbation widths "
+                         f"(benchmarks.systems): no perturbed start")
     width = np.asarray(width, float)
     offset = np.random.default_rng([spec.seed, 0x7374617274]).uniform(-width, width)
     return {"state": gp_envs.oracle_state(env) + offset}
@@ -457,7 +463,7 @@ def _data_env(env: Any, spec: TrialSpec) -> Any:
     own truth draw (``"same"``) or one of an independent draw (``"diff"``), and in a
     time-varying scenario, whose data come from the system before its changes."""
     cell = spec.cell
-    varying = bool(env.unwrapped.SCENARIOS[spec.scenario].changes)
+    varying = bool(scenario_changes(spec.env, spec.scenario))
     if not cell.randomize:
         return (make_env(spec.env, spec.scenario, observation_noise=cell.noise,
                          time_varying=False) if varying else None)

@@ -3,7 +3,7 @@
 Paper, Results, "Cart Pole": "We generated 200 points of data using a sinusoidal desired
 trajectory from a crude feedback controller"; for the quadrotor the reference was a circle in x-y
 at constant height ("flying in circles", "remained level in the z direction"). The controllers
-(each system's registered ``data_policy``, :mod:`gp_envs.systems`, written in its env module)
+(:mod:`gp_agents.data_policies`, registered by system name in :mod:`gp_agents.defaults`)
 use only the env's *nominal* model (gains, hover thrust), act through ``env.step`` on the true
 plant, and are seeded (reference phase, amplitude and small action noise).
 
@@ -20,10 +20,11 @@ import gymnasium as gym
 import numpy as np
 
 from gp_agents.agent import rollout
+from gp_agents.data_policies import DataPolicy, Policy
+from gp_agents.defaults import system_defaults
 from gp_envs.base import GPEnv
 from gp_envs.model import ControlModel
-from gp_envs.systems import SYSTEMS, DataPolicy, Policy
-from gp_envs.wrapper import model_wrapper, nominal_model
+from gp_envs.wrapper import nominal_model
 
 
 @dataclass(frozen=True)
@@ -50,10 +51,10 @@ def collect_initial_data(env: gym.Env, n_points: int = 200, seed: int = 0,
     """Roll out a data-collecting controller on ``env``: its system's crude tracking controller,
     uniform random actions, or your own ``policy``.
 
-    The controller, unless ``policy`` is given: for a registered ``gp_envs`` system, its
-    :attr:`gp_envs.systems.System.data_policy` (started from its ``data_start`` state if it has
-    one) plus Gaussian action noise; for any other env with a nominal model (one made by
-    :func:`gp_envs.wrap`, or an unregistered system), actions drawn uniformly within the
+    The controller, unless ``policy`` is given: the data policy registered for the model's
+    system (:class:`gp_agents.defaults.SystemDefaults`; on a ``gp_envs`` env started from its
+    ``data_start`` state if it has one) plus Gaussian action noise; for a model without one
+    (an env given its model by :func:`gp_envs.wrap`, say), actions drawn uniformly within the
     model's control bounds. By default the data come from the system that
     ``env.reset(seed=seed)`` gives: with a randomized truth (``randomize > 0``) or a redrawn
     nominal model, the episode you then run with ``env.reset(seed=seed)`` is on the same system
@@ -91,7 +92,7 @@ def collect_initial_data(env: gym.Env, n_points: int = 200, seed: int = 0,
     if policy is not None and not callable(policy):
         raise TypeError(f"policy must be a function policy(obs, t) -> u, got "
                         f"{type(policy).__name__}")
-    system = SYSTEMS.get(model.name) if model_wrapper(env) is None else None
+    defaults = system_defaults(model)
     n_points = int(n_points)
     rng = np.random.default_rng(seed)
     if same_system:
@@ -100,14 +101,14 @@ def collect_initial_data(env: gym.Env, n_points: int = 200, seed: int = 0,
     episode = 0
     while sum(len(x) for x in X) < n_points:
         options: dict[str, Any] = {}
-        if system is not None and system.data_start is not None:
-            options["state"] = np.array(system.data_start)
+        if defaults.data_start is not None and isinstance(env.unwrapped, GPEnv):
+            options["state"] = np.array(defaults.data_start)
         if same_system and isinstance(env.unwrapped, GPEnv):
             options["keep_system"] = True
         if policy is not None:
             agent: _DataAgent = _NoisyTracker(env, rng, action_noise, lambda m, r: policy)
-        elif system is not None:
-            agent = _NoisyTracker(env, rng, action_noise, system.data_policy)
+        elif defaults.data_policy is not None:
+            agent = _NoisyTracker(env, rng, action_noise, defaults.data_policy)
         else:
             agent = _UniformActions(env, rng)
         run = rollout(env, agent, None if same_system else seed * 1000 + episode,

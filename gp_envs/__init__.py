@@ -1,8 +1,8 @@
 """Gymnasium environments whose true physical parameters are hidden from the controller.
 
 Importing this package registers these systems (:mod:`gp_envs.systems`: one
-:func:`register_system` call each, at the end of its env module, gives the Gymnasium id, the
-controllers' defaults and the benchmark entry):
+:func:`register_system` call each, at the end of its env module, gives the Gymnasium id under
+the system's name):
 
 - ``gp_envs/CartPoleSwingUp-v0``: :class:`gp_envs.cartpole_swingup.CartPoleSwingUpEnv`
 - ``gp_envs/Quadrotor-v0``: :class:`gp_envs.quadrotor.QuadrotorEnv`
@@ -16,8 +16,8 @@ controllers' defaults and the benchmark entry):
 
 What a controller may know is the env's nominal model (a :class:`ControlModel`:
 :func:`nominal_model` finds it, ``env.unwrapped.nominal_model`` for these envs); :func:`wrap`
-gives any other Gymnasium env one. :func:`oracle_model` gives the truth, for upper-bound
-baselines only.
+gives any other Gymnasium env one (:mod:`gp_envs.dmc`: DeepMind Control's tasks, MuJoCo
+physics). :func:`oracle_model` gives the truth, for upper-bound baselines only.
 """
 
 from __future__ import annotations
@@ -35,7 +35,6 @@ from gp_envs import (  # noqa: F401  (each module registers its system)
 from gp_envs.model import ControlModel, Obstacle, Task
 from gp_envs.systems import (
     SYSTEMS,
-    PlanningDefaults,
     System,
     get_system,
     load_system_plugins,
@@ -44,9 +43,9 @@ from gp_envs.systems import (
 )
 from gp_envs.wrapper import ModelWrapper, model_wrapper, nominal_model, wrap
 
-__all__ = ["ENV_IDS", "SYSTEMS", "ControlModel", "ModelWrapper", "Obstacle", "PlanningDefaults",
-           "System", "Task", "get_system", "nominal_model", "oracle_model", "oracle_state",
-           "register_system", "unregister_system", "wrap"]
+__all__ = ["ENV_IDS", "SYSTEMS", "ControlModel", "ModelWrapper", "Obstacle", "System", "Task",
+           "get_system", "nominal_model", "oracle_model", "oracle_state", "register_system",
+           "unregister_system", "wrap"]
 
 __version__ = "0.1.0"
 

@@ -132,6 +132,8 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
 
     physics: ClassVar[Any]
     """Physics module: ``PARAM_NAMES``, ``STATE_NAMES``, ``CONTROL_NAMES``, ``ode``."""
+    NAME: ClassVar[str | None] = None
+    """The name of the env's models (None: the physics module's short name)."""
     SCENARIOS: ClassVar[dict[str, Scenario]]
     DEFAULT_SCENARIO: ClassVar[str]
     DT: ClassVar[float]
@@ -217,9 +219,15 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
         return spaces.Box(-np.inf, np.inf, shape=(n,), dtype=np.float32)
 
     # ----------------------------------------------------------------- models
+    @classmethod
+    def model_name(cls) -> str:
+        """The name of this env's nominal and true models (:attr:`NAME`, or the physics
+        module's short name): the system's name."""
+        return cls.NAME or cls.physics.__name__.rsplit(".", 1)[-1]
+
     def _make_model(self, params: Mapping[str, float]) -> ControlModel:
         return ControlModel(
-            name=self.physics.__name__.rsplit(".", 1)[-1], ode=self.physics.ode,
+            name=self.model_name(), ode=self.physics.ode,
             param_names=tuple(self.physics.PARAM_NAMES), params=dict(params),
             state_names=tuple(self.physics.STATE_NAMES),
             control_names=tuple(self.physics.CONTROL_NAMES), dt=self.DT,

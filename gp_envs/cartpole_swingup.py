@@ -51,9 +51,9 @@ import numpy as np
 from gymnasium import spaces
 
 from gp_envs.base import GPEnv, ParamChange, Scenario, wrap_to_circle
-from gp_envs.model import ControlModel, Task, diag
+from gp_envs.model import Task, diag
 from gp_envs.physics import cartpole
-from gp_envs.systems import PlanningDefaults, Policy, System, register_system
+from gp_envs.systems import System, register_system
 
 G = 9.81
 
@@ -136,25 +136,7 @@ def _rect(x: float, y: float, w: float, h: float) -> Any:
     return Rectangle((x, y), w, h, color="tab:blue")
 
 
-def initial_data_policy(model: ControlModel, rng: np.random.Generator) -> Policy:
-    """Crude initial-data controller (paper: "a sinusoidal desired trajectory from a crude
-    feedback controller"): PD control of the cart onto a sinusoid of drawn amplitude (0.4-0.8
-    m), frequency (2-4 rad/s) and phase; uses no model parameter."""
-    amp = rng.uniform(0.4, 0.8)          # m
-    omega = rng.uniform(2.0, 4.0)        # rad/s
-    phase = rng.uniform(0, 2 * np.pi)
-    kp, kd = 20.0, 5.0                   # N/m, N s/m on the cart
-
-    def policy(obs: np.ndarray, t: float) -> np.ndarray:
-        ref = amp * np.sin(omega * t + phase)
-        return np.array([kp * (ref - obs[0]) - kd * obs[2]])
-
-    return policy
-
-
 SYSTEM = register_system(System(
     name="cartpole", env_id="gp_envs/CartPoleSwingUp-v0",
-    entry_point="gp_envs.cartpole_swingup:CartPoleSwingUpEnv", max_episode_steps=120,
-    planning=PlanningDefaults(horizon=1.5, n_nodes=16, n_intervals=1),
-    data_policy=initial_data_policy, perturbation=(0.5, 0.3, 0.1, 0.1)))
+    entry_point="gp_envs.cartpole_swingup:CartPoleSwingUpEnv", max_episode_steps=120))
 """The cart pole's registration (:mod:`gp_envs.systems`)."""

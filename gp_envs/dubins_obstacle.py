@@ -41,9 +41,9 @@ import numpy as np
 from gymnasium import spaces
 
 from gp_envs.base import GPEnv, ParamChange, Scenario
-from gp_envs.model import ControlModel, Obstacle, Task, diag
+from gp_envs.model import Obstacle, Task, diag
 from gp_envs.physics import dubins
-from gp_envs.systems import PlanningDefaults, Policy, System, register_system
+from gp_envs.systems import System, register_system
 
 START = np.array([5.0, 5.0])
 GOAL = np.array([2.0, -2.0])
@@ -127,27 +127,7 @@ class DubinsObstacleEnv(GPEnv):
         ax.set_ylabel("y (m)")
 
 
-def initial_data_policy(model: ControlModel, rng: np.random.Generator) -> Policy:
-    """Crude initial-data controller: P control of the heading onto a sinusoid of drawn
-    amplitude (0.5-1 rad), frequency (0.4-0.8 rad/s) and phase, at a speed command varying
-    around 1 m/s; uses no model parameter."""
-    amp = rng.uniform(0.5, 1.0)          # rad
-    omega = rng.uniform(0.4, 0.8)        # rad/s
-    phase = rng.uniform(0, 2 * np.pi)
-
-    def policy(obs: np.ndarray, t: float) -> np.ndarray:
-        heading_ref = amp * np.sin(omega * t + phase)
-        err = np.arctan2(np.sin(heading_ref - obs[2]), np.cos(heading_ref - obs[2]))
-        return np.array([1.0 + 0.5 * np.sin(1.3 * omega * t), 2.0 * err])
-
-    return policy
-
-
 SYSTEM = register_system(System(
     name="dubins", env_id="gp_envs/DubinsObstacle-v0",
-    entry_point="gp_envs.dubins_obstacle:DubinsObstacleEnv", max_episode_steps=150,
-    planning=PlanningDefaults(horizon=4.0, n_nodes=12, n_intervals=2),
-    data_policy=initial_data_policy,
-    # data are gathered away from the obstacle: the actuator losses do not depend on position
-    data_start=(-8.0, 6.0, 0.0), position_dims=2, perturbation=(0.5, 0.5, 0.3)))
+    entry_point="gp_envs.dubins_obstacle:DubinsObstacleEnv", max_episode_steps=150))
 """The Dubins vehicle's registration (:mod:`gp_envs.systems`)."""

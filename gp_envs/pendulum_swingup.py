@@ -37,9 +37,9 @@ import numpy as np
 from gymnasium import spaces
 
 from gp_envs.base import GPEnv, Scenario, wrap_to_circle
-from gp_envs.model import ControlModel, Task, diag
+from gp_envs.model import Task, diag
 from gp_envs.physics import pendulum
-from gp_envs.systems import PlanningDefaults, Policy, System, register_system
+from gp_envs.systems import System, register_system
 
 G = 9.81
 TAU_MAX = 2.5
@@ -101,27 +101,7 @@ class PendulumSwingUpEnv(GPEnv):
         ax.set_xlabel("x (m)")
 
 
-def initial_data_policy(model: ControlModel, rng: np.random.Generator) -> Policy:
-    """Crude initial-data controller: PD control of the angle onto a sinusoid around hanging
-    of drawn amplitude (0.5-1.5 rad), frequency (2-5 rad/s) and phase, saturated by the
-    env's torque bound; uses no model parameter."""
-    amp = rng.uniform(0.5, 1.5)          # rad
-    omega = rng.uniform(2.0, 5.0)        # rad/s
-    phase = rng.uniform(0, 2 * np.pi)
-    kp, kd = 4.0, 0.4                    # N m/rad, N m s/rad
-
-    def policy(obs: np.ndarray, t: float) -> np.ndarray:
-        ref = amp * np.sin(omega * t + phase)
-        err = np.arctan2(np.sin(ref - obs[0]), np.cos(ref - obs[0]))
-        return np.array([kp * err - kd * obs[1]])
-
-    return policy
-
-
 SYSTEM = register_system(System(
     name="pendulum", env_id="gp_envs/PendulumSwingUp-v0",
-    entry_point="gp_envs.pendulum_swingup:PendulumSwingUpEnv", max_episode_steps=100,
-    # horizon chosen on seed 0 with the oracle: 1.5 s is upright at 4.0 s, 2.5 s at 2.65 s
-    planning=PlanningDefaults(horizon=2.5, n_nodes=12, n_intervals=2),
-    data_policy=initial_data_policy, perturbation=(0.3, 0.3)))
+    entry_point="gp_envs.pendulum_swingup:PendulumSwingUpEnv", max_episode_steps=100))
 """The pendulum's registration (:mod:`gp_envs.systems`)."""

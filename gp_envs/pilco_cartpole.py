@@ -98,9 +98,9 @@ import numpy as np
 
 from gp_envs.base import Scenario
 from gp_envs.cartpole_swingup import CartPoleSwingUpEnv
-from gp_envs.model import ControlModel, Task, diag
+from gp_envs.model import Task, diag
 from gp_envs.physics import pilco_cartpole
-from gp_envs.systems import PlanningDefaults, Policy, System, register_system
+from gp_envs.systems import System, register_system
 
 G = 9.82
 """Gravity, m/s^2 (``dynamics_cp.m``)."""
@@ -198,23 +198,7 @@ class PilcoCartPoleEnv(CartPoleSwingUpEnv):
         return info
 
 
-def initial_data_policy(model: ControlModel, rng: np.random.Generator) -> Policy:
-    """PILCO's initial random trial: a force drawn uniformly from the model's control bounds at
-    every call (``rollout.m`` without a policy function: ``maxU .* (2 rand - 1)``)."""
-    low, high = np.asarray(model.u_lb, float), np.asarray(model.u_ub, float)
-
-    def policy(obs: np.ndarray, t: float) -> np.ndarray:
-        return rng.uniform(low, high)
-
-    return policy
-
-
 SYSTEM = register_system(System(
     name="pilco_cartpole", env_id="gp_envs/PilcoCartPole-v0",
-    entry_point="gp_envs.pilco_cartpole:PilcoCartPoleEnv", max_episode_steps=40,
-    # horizon measured with the nominal MPC (n_nodes 16), env seeds 0-9: 2.5 s succeeds on
-    # 10/10 (final stretch at the goal from 1.1-1.7 s); 1.5 s on 2/4 (seeds 0-3), 2.0 s on 2/3
-    # (seeds 0-2), 3.0 s on 3/4 (seeds 0-3); 2.0 s or 2.5 s with two intervals on 9/10
-    planning=PlanningDefaults(horizon=2.5, n_nodes=16, n_intervals=1),
-    data_policy=initial_data_policy))
+    entry_point="gp_envs.pilco_cartpole:PilcoCartPoleEnv", max_episode_steps=40))
 """PILCO's cart pole's registration (:mod:`gp_envs.systems`)."""

@@ -42,9 +42,9 @@ from typing import Any, ClassVar
 import numpy as np
 
 from gp_envs.base import GPEnv, ParamChange, Scenario
-from gp_envs.model import ControlModel, Task, diag
+from gp_envs.model import Task, diag
 from gp_envs.physics import quadrotor
-from gp_envs.systems import PlanningDefaults, Policy, System, register_system
+from gp_envs.systems import System, register_system
 
 G = 9.81
 START = np.array([-1.0, 1.0, 0.5])
@@ -115,45 +115,7 @@ class QuadrotorEnv(GPEnv):
         ax.legend(loc="lower left", fontsize=7)
 
 
-def initial_data_policy(model: ControlModel, rng: np.random.Generator) -> Policy:
-    """Crude initial-data controller (paper: "flying in circles", level in z): a cascade of
-    PD position control onto a circle of drawn radius (0.3-0.6 m), rate (1-2 rad/s) and phase
-    through the env's first position, a small-attitude inversion of the *nominal* model at
-    ``psi = 0`` and PD attitude control; uses the nominal mass, inertias and arm length."""
-    p = model.params
-    m, g, arm = p["m"], p["g"], p["L"]
-    jx, jy, jz = p["Jx"], p["Jy"], p["Jz"]
-    radius = rng.uniform(0.3, 0.6)       # m
-    omega = rng.uniform(1.0, 2.0)        # rad/s
-    phase = rng.uniform(0, 2 * np.pi)
-    center: list[np.ndarray] = []
-
-    def policy(obs: np.ndarray, t: float) -> np.ndarray:
-        if not center:
-            center.append(obs[:3] - radius * np.array([np.cos(phase), np.sin(phase), 0.0]))
-        c = center[0]
-        ang = omega * t + phase
-        ref = c + radius * np.array([np.cos(ang), np.sin(ang), 0.0])
-        vref = radius * omega * np.array([-np.sin(ang), np.cos(ang), 0.0])
-        acc = 4.0 * (ref - obs[:3]) + 3.0 * (vref - obs[6:9])          # m/s^2
-        # small-attitude inversion of the paper's model at psi = 0: xdd ~ theta g, ydd ~ -phi g
-        theta_des = np.clip(acc[0] / g, -0.3, 0.3)
-        phi_des = np.clip(-acc[1] / g, -0.3, 0.3)
-        thrust = m * (g - acc[2])                                        # N (NED: z down)
-        tau_phi = jx * (100.0 * (phi_des - obs[3]) - 20.0 * obs[9])
-        tau_theta = jy * (100.0 * (theta_des - obs[4]) - 20.0 * obs[10])
-        tau_psi = jz * (25.0 * (0.0 - obs[5]) - 10.0 * obs[11])
-        even = 0.5 * (thrust + tau_psi / (0.05 * arm))                   # F2 + F4
-        odd = 0.5 * (thrust - tau_psi / (0.05 * arm))                    # F1 + F3
-        return np.array([0.5 * (odd + tau_theta / arm), 0.5 * (even - tau_phi / arm),
-                         0.5 * (odd - tau_theta / arm), 0.5 * (even + tau_phi / arm)])
-
-    return policy
-
-
 SYSTEM = register_system(System(
-    name="quadrotor", env_id="gp_envs/Quadrotor-v0", entry_point="gp_envs.quadrotor:QuadrotorEnv",
-    max_episode_steps=120, planning=PlanningDefaults(horizon=1.5, n_nodes=10, n_intervals=1),
-    data_policy=initial_data_policy, position_dims=3,
-    perturbation=(0.3, 0.3, 0.3, 0.05, 0.05, 0.05, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1)))
+    name="quadrotor", env_id="gp_envs/Quadrotor-v0",
+    entry_point="gp_envs.quadrotor:QuadrotorEnv", max_episode_steps=120))
 """The quadrotor's registration (:mod:`gp_envs.systems`)."""

@@ -1,25 +1,17 @@
-"""One registration per system: the env, its controllers' defaults and its benchmark entry.
+"""One registration per system: its name and its Gymnasium env.
 
 A *system* is registered once, by :func:`register_system`, next to its env class (the last
-lines of each env module). That one call
+lines of each env module). That call registers the Gymnasium id (``gym.make(system.env_id)``)
+under the system's name, which is the name of the env's model
+(:attr:`gp_envs.model.ControlModel.name`). Nothing here knows a controller or a benchmark: the
+controllers keep their defaults for a system (time scales, a data controller) in
+:mod:`gp_agents.defaults` and the benchmark its scenarios to sweep in :mod:`benchmarks.systems`,
+both by this name. A system of your own::
 
-- registers the Gymnasium id (``gym.make(system.env_id)``),
-- gives model-based controllers the system's time scales (:class:`PlanningDefaults`: horizon and
-  resolution, read by :meth:`gp_agents.PseudospectralMPC.from_env`),
-- gives the learning controllers their initial-data controller (:attr:`System.data_policy`,
-  read by :func:`gp_agents.data.collect_initial_data`), and
-- makes the system a benchmark env (``python -m benchmarks --envs NAME``).
+    from gp_envs.systems import System, register_system
 
-Everything else about the system (physics, parameters and their valid ranges, state and action
-bounds, the task) lives in its physics module and env class. A system of your own::
-
-    from gp_envs.systems import PlanningDefaults, System, register_system
-
-    register_system(System(
-        name="mysystem",                      # = the physics module's name
-        env_id="mypkg/MySystem-v0", entry_point="mypkg.env:MySystemEnv",
-        max_episode_steps=100, planning=PlanningDefaults(horizon=1.0, n_nodes=10),
-        data_policy=my_crude_controller))
+    register_system(System(name="mysystem", env_id="mypkg/MySystem-v0",
+                           entry_point="mypkg.env:MySystemEnv", max_episode_steps=100))
 
 The built-in systems are registered when :mod:`gp_envs` is imported, and so are the systems of
 installed packages that declare an entry point in the group ``gp_envs.systems`` (the module
@@ -29,14 +21,9 @@ that calls :func:`register_system`), e.g. in the package's ``pyproject.toml``::
     mysystem = "mypkg.env"
 
 so that every process that imports :mod:`gp_envs` knows them -- the benchmark's spawned worker
-processes included, which a registration in a script's ``__main__`` does not reach. With the
-package installed, ``python -m benchmarks.rl.train --env mysystem --algo sac`` trains an RL
-baseline into ``./benchmarks/models/mysystem/sac`` and ``gp-bench --envs mysystem --controllers
-nominal-mpc,sac`` compares it with the MPC (``docs/guide/own-system.md``;
-``tests/test_own_system.py`` does all of it with a small system).
-
-This module knows no controller: the defaults are plain numbers, the data policy a function of
-the nominal model.
+processes included, which a registration in a script's ``__main__`` does not reach
+(``docs/guide/own-system.md``; ``tests/test_own_system.py`` does all of it with a small
+system).
 """
 
 from __future__ import annotations
@@ -44,51 +31,11 @@ from __future__ import annotations
 import importlib
 import importlib.metadata
 import warnings
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-import numpy as np
 from gymnasium.envs.registration import register, registry
-
-if TYPE_CHECKING:
-    from gp_envs.model import ControlModel
-
-Policy = Callable[[np.ndarray, float], np.ndarray]
-"""A feedback law ``u = policy(obs, t)``: observation (n,), time in seconds, action (m,)."""
-DataPolicy = Callable[["ControlModel", np.random.Generator], Policy]
-"""Builds one episode's initial-data controller from the episode's nominal model and an RNG
-(reference phases and amplitudes are drawn from it)."""
-
-
-@dataclass(frozen=True)
-class PlanningDefaults:
-    """A system's time scales for a model-based controller: how far ahead to look and how finely
-    (what the system's author measured works). Solver tuning (QP solvers, regularization, how a
-    learned term enters a real-time iteration) is the controller's business and is registered
-    with the controller (``gp_agents.mpc.tuning``), not here.
-
-    Attributes:
-        horizon: receding horizon, seconds.
-        n_nodes: Legendre-Gauss nodes per interval of the polynomial part of the horizon.
-        n_intervals: intervals of the polynomial part (after the held control periods).
-        nodes_per_period: LG nodes in each held control period of an episodic plan.
-    """
-
-    horizon: float
-    n_nodes: int
-    n_intervals: int = 1
-    nodes_per_period: int = 3
-
-    def __post_init__(self) -> None:
-        if not (np.isfinite(self.horizon) and self.horizon > 0):
-            raise ValueError(f"PlanningDefaults: horizon must be a positive number of seconds, "
-                             f"got {self.horizon!r}")
-        for name in ("n_nodes", "n_intervals", "nodes_per_period"):
-            value = getattr(self, name)
-            if not isinstance(value, (int, np.integer)) or value < 1:
-                raise ValueError(f"PlanningDefaults: {name} must be an integer >= 1, "
-                                 f"got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -97,31 +44,17 @@ class System:
 
     Attributes:
         name: short name, the ``name`` of the env's :class:`~gp_envs.model.ControlModel`
-            (its physics module's name, e.g. ``"cartpole"``); the benchmark's ``--envs`` name.
+            (e.g. ``"cartpole"``); the benchmark's ``--envs`` name and the key the controllers'
+            defaults are kept under.
         env_id: Gymnasium id, e.g. ``"gp_envs/CartPoleSwingUp-v0"``.
         entry_point: ``"module:Class"`` of the env (a :class:`gp_envs.base.GPEnv` subclass).
         max_episode_steps: Gymnasium's time limit (the task's duration over the control period).
-        planning: default MPC settings.
-        data_policy: the crude feedback controller that collects initial learning data; it may
-            use the nominal model only.
-        data_start: (n,) state the data episodes start from (None: the env's own reset).
-        benchmark_scenarios: scenarios the benchmark runs (None: every scenario of the env).
-        position_dims: the first ``position_dims`` state components are a position in metres
-            (the benchmark reports the final position error); 0: none is reported.
-        perturbation: (n,) half-widths, in the states' units, of the uniform offset the
-            benchmark adds to the env's start for a "perturbed start" (None: not offered).
     """
 
     name: str
     env_id: str
     entry_point: str
     max_episode_steps: int
-    planning: PlanningDefaults
-    data_policy: DataPolicy
-    data_start: tuple[float, ...] | None = None
-    benchmark_scenarios: tuple[str, ...] | None = None
-    position_dims: int = 0
-    perturbation: tuple[float, ...] | None = None
 
     def env_class(self) -> type:
         """The env class named by :attr:`entry_point` (imported on first use)."""
@@ -130,9 +63,7 @@ class System:
 
     @property
     def scenarios(self) -> tuple[str, ...]:
-        """Scenarios the benchmark runs (:attr:`benchmark_scenarios` or all of the env's)."""
-        if self.benchmark_scenarios is not None:
-            return self.benchmark_scenarios
+        """The env's scenarios."""
         return tuple(self.env_class().SCENARIOS)
 
     @property
@@ -150,11 +81,9 @@ def register_system(system: System) -> System:
     Re-registering an identical system is a no-op (module reloads).
 
     Raises:
-        ValueError: another system already has that name or env id; the env class's physics
-            module is not named :attr:`System.name`; a benchmark scenario the env does not
-            have; its physics module without ``STATE_UNITS`` / ``CONTROL_UNITS`` matching its
-            names; ``max_episode_steps < 1``; ``position_dims`` outside ``[0, n]``; a
-            ``data_start`` or ``perturbation`` of the wrong length.
+        ValueError: another system already has that name or env id; the env class's model is
+            not named :attr:`System.name`; its physics module without ``STATE_UNITS`` /
+            ``CONTROL_UNITS`` matching its names; ``max_episode_steps < 1``.
     """
     old = _SYSTEMS.get(system.name)
     if old is not None:
@@ -171,28 +100,15 @@ def register_system(system: System) -> System:
                          f"got {system.max_episode_steps}")
     cls = system.env_class()
     physics = getattr(cls, "physics", None)
-    model_name = getattr(physics, "__name__", "").rsplit(".", 1)[-1]
+    model_name = cls.model_name() if hasattr(cls, "model_name") else None
     if model_name != system.name:
-        raise ValueError(f"system {system.name!r}: its env {system.entry_point} simulates "
-                         f"physics module {model_name!r}; the names must match (the "
-                         f"controllers find a model's system by the model's name)")
-    unknown = sorted(set(system.benchmark_scenarios or ()) - set(cls.SCENARIOS))
-    if unknown:
-        raise ValueError(f"system {system.name!r}: benchmark scenario(s) {unknown} are not "
-                         f"scenarios of {cls.__name__} ({sorted(cls.SCENARIOS)})")
-    n = len(physics.STATE_NAMES)
+        raise ValueError(f"system {system.name!r}: its env {system.entry_point} names its "
+                         f"model {model_name!r}; the names must match (the controllers find "
+                         f"a model's defaults by the model's name)")
     for names, units in (("STATE_NAMES", "STATE_UNITS"), ("CONTROL_NAMES", "CONTROL_UNITS")):
         if len(getattr(physics, units, ())) != len(getattr(physics, names)):
             raise ValueError(f"system {system.name!r}: its physics module needs {units}, one "
                              f"unit string per entry of {names} (for plots and docs)")
-    if not 0 <= system.position_dims <= n:
-        raise ValueError(f"system {system.name!r}: position_dims must be in [0, {n}], "
-                         f"got {system.position_dims}")
-    for field in ("data_start", "perturbation"):
-        value = getattr(system, field)
-        if value is not None and len(value) != n:
-            raise ValueError(f"system {system.name!r}: {field} must have {n} components, "
-                             f"got {len(value)}")
     if system.env_id not in registry:
         register(id=system.env_id, entry_point=system.entry_point,
                  max_episode_steps=int(system.max_episode_steps))
@@ -243,20 +159,23 @@ ENTRY_POINT_GROUP = "gp_envs.systems"
 """Entry-point group of installed packages' system modules (see the module docstring)."""
 
 
-def load_system_plugins() -> list[str]:
-    """Import every module declared in the :data:`ENTRY_POINT_GROUP` entry-point group (each
-    registers its systems); returns the entry points' names. Called by ``import gp_envs``.
+def load_system_plugins(group: str = ENTRY_POINT_GROUP) -> list[str]:
+    """Import every module declared in the entry-point group ``group`` (each registers its
+    systems, or its entries for them); returns the entry points' names. Called by ``import
+    gp_envs`` for :data:`ENTRY_POINT_GROUP`; the layers above load their own groups the same
+    way (``gp_agents.systems``: the controllers' defaults, ``benchmarks.systems``: the
+    benchmark's entries), so that a plugin's module imports only the layer it registers with.
 
     A plugin that fails to import is skipped with a ``RuntimeWarning`` naming it and the error
-    (``gp_envs`` itself stays usable); its systems are then unknown names.
+    (the package itself stays usable); its systems are then unknown names.
     """
     loaded = []
-    for entry in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
+    for entry in importlib.metadata.entry_points(group=group):
         try:
             entry.load()
         except Exception as err:  # any failure of a third-party module
-            warnings.warn(f"gp_envs: system plugin {entry.name!r} ({entry.value}) failed to "
-                          f"load and is skipped: {type(err).__name__}: {err}", RuntimeWarning,
+            warnings.warn(f"{group}: plugin {entry.name!r} ({entry.value}) failed to load and "
+                          f"is skipped: {type(err).__name__}: {err}", RuntimeWarning,
                           stacklevel=2)
             continue
         loaded.append(entry.name)

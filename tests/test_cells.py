@@ -7,6 +7,7 @@ import pytest
 
 import gp_envs
 from benchmarks.controllers import make_env
+from benchmarks.systems import benchmark_system
 from benchmarks.trial import Cell, TrialSpec, _data_env, _start_options
 
 
@@ -76,7 +77,7 @@ def test_perturbed_starts_are_seeded_offsets_within_the_stated_widths():
     np.testing.assert_array_equal(a, b)
     env.reset(seed=4)
     offset = a - gp_envs.oracle_state(env)
-    assert np.all(np.abs(offset) <= np.array(gp_envs.get_system("cartpole").perturbation))
+    assert np.all(np.abs(offset) <= np.array(benchmark_system("cartpole").perturbation))
     assert np.abs(offset[0]) > 0.0
     c = _start_options(env, TrialSpec("episode", "cartpole", "online", "nominal-mpc", 5,
                                       cell=Cell(start="perturbed")))["state"]
@@ -90,8 +91,8 @@ def test_a_system_without_perturbation_widths_has_no_perturbed_start(monkeypatch
 
     import benchmarks.trial as trial
 
-    bare = dataclasses.replace(gp_envs.get_system("cartpole"), perturbation=None)
-    monkeypatch.setattr(trial, "get_system", lambda name: bare)
+    bare = dataclasses.replace(benchmark_system("cartpole"), perturbation=None)
+    monkeypatch.setattr(trial, "benchmark_system", lambda name: bare)
     with pytest.raises(ValueError, match="no perturbation widths"):
         _start_options(make_env("cartpole", "online"), TrialSpec(
             "episode", "cartpole", "online", "nominal-mpc", 4, cell=Cell(start="perturbed")))

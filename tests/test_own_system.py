@@ -34,12 +34,13 @@ def _install_plugin(site: Path) -> None:
     """Write package ``gp_puck`` and its distribution metadata into ``site``."""
     pkg = site / "gp_puck"
     pkg.mkdir(parents=True)
-    for module in ("__init__.py", "puck.py", "env.py"):
+    for module in ("__init__.py", "puck.py", "env.py", "control.py"):
         shutil.copy(EXAMPLE / module, pkg / module)
     dist = site / "gp_puck-0.1.dist-info"
     dist.mkdir()
     (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: gp-puck\nVersion: 0.1\n")
-    (dist / "entry_points.txt").write_text("[gp_envs.systems]\npuck = gp_puck.env\n")
+    (dist / "entry_points.txt").write_text("[gp_envs.systems]\npuck = gp_puck.env\n\n"
+                                           "[gp_agents.systems]\npuck = gp_puck.control\n")
 
 
 def _run(args: list[str], cwd: Path, env: dict[str, str]) -> subprocess.CompletedProcess:

@@ -191,11 +191,14 @@ def test_gymnasium_env_checker_passes():
     assert frame.render().ndim == 3
 
 
-def test_the_system_is_registered_with_the_planning_fields_only():
+def test_the_system_is_registered_with_its_controller_defaults():
+    from gp_agents.defaults import system_defaults
+
     system = gp_envs.get_system("pilco_cartpole")
     assert system.env_id == ENV_ID and system.max_episode_steps == 40
-    assert (system.planning.horizon, system.planning.n_nodes, system.planning.n_intervals,
-            system.planning.nodes_per_period) == (2.5, 16, 1, 3)
+    planning = system_defaults("pilco_cartpole").planning
+    assert (planning.horizon, planning.n_nodes, planning.n_intervals,
+            planning.nodes_per_period) == (2.5, 16, 1, 3)
 
 
 def test_initial_data_is_pilcos_random_trial():

@@ -1,5 +1,6 @@
-"""One registration per system (gp_envs.systems): what it gives, what it refuses, and that the
-fourth system (the pendulum) needed no file but its own."""
+"""One registration per system (gp_envs.systems: the env; gp_agents.defaults: the controllers'
+defaults; benchmarks.systems: the benchmark's entry): what each gives, what it refuses, and where
+the fourth system (the pendulum) is named."""
 
 from __future__ import annotations
 
@@ -16,12 +17,13 @@ import pytest
 
 import gp_envs
 from benchmarks.controllers import ENVS
+from benchmarks.systems import unregister_benchmark_system
 from benchmarks.trial import TrialSpec, execute
 from gp_agents import PseudospectralMPC, collect_initial_data
 from gp_agents.agent import rollout
+from gp_agents.defaults import PlanningDefaults, unregister_defaults
 from gp_envs.systems import (
     SYSTEMS,
-    PlanningDefaults,
     System,
     get_system,
     register_system,
@@ -54,7 +56,7 @@ _ENV = """
 import numpy as np
 from gp_envs.base import GPEnv, Scenario
 from gp_envs.model import Task, diag
-from gp_envs.systems import PlanningDefaults, System, register_system
+from gp_envs.systems import System, register_system
 from userpm import pointmass
 
 
@@ -79,15 +81,27 @@ class PointMassEnv(GPEnv):
         ax.plot(self._state[0], 0.0, "o")
 
 
+SYSTEM = register_system(System(
+    name="pointmass", env_id="user/PointMass-v0", entry_point="userpm.env:PointMassEnv",
+    max_episode_steps=40))
+"""
+_CONTROL = """
+import numpy as np
+from gp_agents import PlanningDefaults, SystemDefaults, register_defaults
+
+
 def data_policy(model, rng):
     amp = rng.uniform(0.5, 1.0)
     return lambda obs, t: np.array([amp * np.sin(2.0 * t)])
 
 
-SYSTEM = register_system(System(
-    name="pointmass", env_id="user/PointMass-v0", entry_point="userpm.env:PointMassEnv",
-    max_episode_steps=40, planning=PlanningDefaults(horizon=1.2, n_nodes=8),
-    data_policy=data_policy, data_start=(-1.0, 0.0), position_dims=1))
+register_defaults("pointmass", SystemDefaults(PlanningDefaults(horizon=1.2, n_nodes=8),
+                                              data_policy, data_start=(-1.0, 0.0)))
+"""
+_BENCH = """
+from benchmarks.systems import BenchmarkSystem, register_benchmark_system
+
+register_benchmark_system("pointmass", BenchmarkSystem(position_dims=1))
 """
 
 
@@ -99,10 +113,15 @@ def _write_plugin(root: Path, entry_module: str = "userpm.env") -> Path:
     (pkg / "__init__.py").write_text("")
     (pkg / "pointmass.py").write_text(_PHYSICS)
     (pkg / "env.py").write_text(_ENV)
+    (pkg / "control.py").write_text(_CONTROL)
+    (pkg / "bench.py").write_text(_BENCH)
     info = root / "userpm-0.1.dist-info"
     info.mkdir(exist_ok=True)
     (info / "METADATA").write_text("Metadata-Version: 2.1\nName: userpm\nVersion: 0.1\n")
-    (info / "entry_points.txt").write_text(f"[gp_envs.systems]\npointmass = {entry_module}\n")
+    (info / "entry_points.txt").write_text(
+        f"[gp_envs.systems]\npointmass = {entry_module}\n\n"
+        "[gp_agents.systems]\npointmass = userpm.control\n\n"
+        "[benchmarks.systems]\npointmass = userpm.bench\n")
     return root
 
 
@@ -110,10 +129,15 @@ def _write_plugin(root: Path, entry_module: str = "userpm.env") -> Path:
 def user_system(tmp_path):
     sys.path.insert(0, str(_write_plugin(tmp_path)))
     try:
-        yield importlib.import_module("userpm.env").SYSTEM
+        system = importlib.import_module("userpm.env").SYSTEM
+        importlib.import_module("userpm.control")
+        importlib.import_module("userpm.bench")
+        yield system
     finally:
         if "pointmass" in SYSTEMS:
             unregister_system("pointmass")
+        unregister_defaults("pointmass")
+        unregister_benchmark_system("pointmass")
         for name in [m for m in sys.modules if m == "userpm" or m.startswith("userpm.")]:
             del sys.modules[name]
         sys.path.remove(str(tmp_path))
@@ -157,18 +181,13 @@ def test_registration_refuses_inconsistent_systems(user_system):
     assert register_system(base) is base  # the identical system again is a no-op
     with pytest.raises(ValueError, match=r"env id .* already registered"):
         register_system(System(**{**base.__dict__, "name": "other"}))
-    with pytest.raises(ValueError, match="physics module 'pointmass'"):
+    with pytest.raises(ValueError, match="names its model 'pointmass'"):
         register_system(System(**{**base.__dict__, "name": "pointmass2",
                                   "env_id": "user/PM2-v0"}))
     unregister_system("pointmass")
-    for change, message in [({"benchmark_scenarios": ("nope",)}, "not scenarios"),
-                            ({"max_episode_steps": 0}, "max_episode_steps"),
-                            ({"position_dims": 3}, "position_dims"),
-                            ({"data_start": (0.0,)}, "data_start"),
-                            ({"perturbation": (0.1, 0.1, 0.1)}, "perturbation")]:
-        with pytest.raises(ValueError, match=message):
-            register_system(System(**{**base.__dict__, **change}))
-        assert "pointmass" not in SYSTEMS and "user/PointMass-v0" not in gym.registry
+    with pytest.raises(ValueError, match="max_episode_steps"):
+        register_system(System(**{**base.__dict__, "max_episode_steps": 0}))
+    assert "pointmass" not in SYSTEMS and "user/PointMass-v0" not in gym.registry
     physics = base.env_class().physics
     physics.STATE_UNITS = ("m",)
     with pytest.raises(ValueError, match="needs STATE_UNITS"):
@@ -184,6 +203,26 @@ def test_registration_refuses_inconsistent_systems(user_system):
 def test_planning_defaults_are_checked(kwargs, message):
     with pytest.raises(ValueError, match=message):
         PlanningDefaults(**kwargs)
+
+
+def test_controller_and_benchmark_entries_are_checked():
+    from benchmarks.systems import BenchmarkSystem, register_benchmark_system
+    from gp_agents import SystemDefaults, register_defaults
+
+    with pytest.raises(TypeError, match="PlanningDefaults"):
+        SystemDefaults(planning=1.5)
+    with pytest.raises(TypeError, match="data_policy"):
+        SystemDefaults(data_policy="pd")
+    with pytest.raises(ValueError, match="data_start"):
+        SystemDefaults(data_start=(np.nan, 0.0))
+    with pytest.raises(TypeError, match="SystemDefaults"):
+        register_defaults("x", {"planning": None})
+    with pytest.raises(ValueError, match="position_dims"):
+        BenchmarkSystem(position_dims=-1)
+    with pytest.raises(ValueError, match="perturbation"):
+        BenchmarkSystem(perturbation=(0.1, -0.1))
+    with pytest.raises(TypeError, match="BenchmarkSystem"):
+        register_benchmark_system("x", None)
 
 
 @pytest.mark.parametrize(("kwargs", "message"), [
@@ -228,8 +267,10 @@ def test_unknown_systems_are_named_errors():
         "ode", "param_names", "params", "state_names", "control_names", "dt", "x_lb", "x_ub",
         "u_lb", "u_ub", "task", "substeps", "angle_indices", "dynamic_indices")},
         "name": "unregistered", "param_ranges": model.param_ranges})
-    with pytest.raises(ValueError, match=r"not registered.*horizon="):
-        PseudospectralMPC(unnamed)
+    # a model without controller defaults: min(50 periods, a quarter of the task), 12 nodes
+    default = PseudospectralMPC(unnamed).schedule
+    assert default.horizon == pytest.approx(min(50 * model.dt, model.task.duration / 4))
+    assert (default.n_nodes, default.n_intervals) == (12, 1)
     assert PseudospectralMPC(unnamed, horizon=1.0).schedule.horizon == 1.0
 
 
@@ -242,19 +283,37 @@ def test_built_in_systems_are_registered_in_their_env_modules():
         assert module.SYSTEM is system
 
 
-def test_the_pendulum_is_added_in_its_own_files_only():
-    """The fourth system needed no edit elsewhere: outside its physics module and env module,
-    only the package's import list (gp_envs/__init__, gp_envs/physics/__init__) and the
-    experiments that study it (benchmarks/presets.py) name it."""
-    # the RTI's per-system solver tuning is the controller's (keyed by name; optional)
-    allowed = {"gp_agents/mpc/tuning.py", "gp_envs/pendulum_swingup.py",
-               "gp_envs/physics/pendulum.py", "gp_envs/__init__.py", "gp_envs/physics/__init__.py",
-               "benchmarks/presets.py"}
+def test_the_pendulum_is_named_in_its_own_files_and_its_entries_only():
+    """The fourth system: outside its physics module and env module, only the package's import
+    list (gp_envs/__init__, gp_envs/physics/__init__), the controllers' entries for it (its
+    defaults, data policy and RTI tuning, by name), the benchmark's entry and the experiments
+    that study it (benchmarks/presets.py) name it."""
+    allowed = {"gp_envs/pendulum_swingup.py", "gp_envs/physics/pendulum.py",
+               "gp_envs/__init__.py", "gp_envs/physics/__init__.py", "gp_agents/defaults.py",
+               "gp_agents/data_policies.py", "gp_agents/mpc/tuning.py",
+               "benchmarks/systems.py", "benchmarks/presets.py",
+               "benchmarks/outside_envs.py"}  # Gymnasium's Pendulum-v1, another pendulum
     named = {str(p.relative_to(REPO)) for pkg in ("gp_envs", "gp_agents", "benchmarks")
              for p in (REPO / pkg).rglob("*.py")
              if re.search(r"\bpendulum\b|PendulumSwingUp", p.read_text())}
     named = {n for n in named if not n.startswith("benchmarks/studies/")}  # studies measure it
     assert named <= allowed, sorted(named - allowed)
+
+
+def test_gp_envs_knows_no_planner_and_no_benchmark():
+    """gp_envs imports nothing of gp_agents or benchmarks and defines none of their notions
+    (planning defaults, data policies, benchmark scenarios, perturbations)."""
+    code = ("import sys, gp_envs, gp_envs.dmc, gp_envs.wrapper; "
+            "print(sorted(m for m in sys.modules if m.split('.')[0] in "
+            "('gp_agents', 'benchmarks')))")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         env={**os.environ, "PYTHONPATH": str(REPO)}, cwd=REPO, timeout=120)
+    assert res.returncode == 0 and res.stdout.strip() == "[]", res.stderr[-2000:]
+    words = re.compile(r"PlanningDefaults|data_policy|DataPolicy|benchmark_scenarios|"
+                       r"perturbation|position_dims|n_nodes|nodes_per_period")
+    hits = [(str(p.relative_to(REPO)), m.group(0)) for p in (REPO / "gp_envs").rglob("*.py")
+            for m in words.finditer(p.read_text())]
+    assert hits == []
 
 
 def _run(args: list[str], pythonpath: Path, cwd: Path) -> subprocess.CompletedProcess:
@@ -282,5 +341,5 @@ def test_a_broken_plugin_is_skipped_with_a_warning(tmp_path):
     res = _run(["-W", "always", "-c", "import gp_envs; print(sorted(gp_envs.SYSTEMS))"], root,
                tmp_path)
     assert res.returncode == 0, res.stderr
-    assert "system plugin 'pointmass' (userpm.missing) failed to load" in res.stderr
+    assert "gp_envs.systems: plugin 'pointmass' (userpm.missing) failed to load" in res.stderr
     assert "'cartpole'" in res.stdout and "pointmass" not in res.stdout

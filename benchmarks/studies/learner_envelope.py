@@ -361,7 +361,7 @@ def run_one(variant: str, cell: str, seed: int, controller: str) -> dict[str, An
     import dataclasses
 
     import benchmarks.controllers as controllers
-    import gp_envs.systems as systems
+    import gp_agents.defaults as defaults
     from benchmarks.trial import Cell, TrialSpec, execute
 
     learner, policy = DATA_VARIANTS.get(variant, (variant, None))
@@ -375,15 +375,16 @@ def run_one(variant: str, cell: str, seed: int, controller: str) -> dict[str, An
     original = controllers.make_learner
     if variant != "own":
         controllers.make_learner = lambda kind, *args: make()
-    registered = systems._SYSTEMS["cartpole"]
+    registered = defaults.system_defaults("cartpole")
     if policy is not None:
-        systems._SYSTEMS["cartpole"] = dataclasses.replace(registered, data_policy=policy)
+        defaults.register_defaults("cartpole", dataclasses.replace(registered,
+                                                                   data_policy=policy))
     try:
         rec = execute(TrialSpec("episode", env, scenario, controller, seed,
                                 cell=Cell(**settings)))
     finally:
         controllers.make_learner = original
-        systems._SYSTEMS["cartpole"] = registered
+        defaults.register_defaults("cartpole", registered)
     m = rec["metrics"]
     return {"variant": variant, "controller": controller, "cell": cell, "seed": seed,
             "status": rec["status"], "success": bool(m.get("success", False)),

@@ -11,6 +11,7 @@ from pathlib import Path
 import gymnasium as gym
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # not needed once installed
+import gp_puck.control  # its controller defaults (registered on import)
 import gp_puck.env  # noqa: F401  (registers the system "puck")
 
 from gp_agents import collect_initial_data, make_mpc, rollout

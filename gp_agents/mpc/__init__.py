@@ -33,7 +33,7 @@ from gp_agents.mpc.ocp import Constraints, Mesh, build_ocp
 from gp_agents.mpc.planner import CAPPED_STATUSES, Plan, Planner
 from gp_agents.mpc.planning_model import PlanningModel
 from gp_agents.mpc.recipes import DEFAULT_RECIPE, RECIPES, OracleModel, make_mpc
-from gp_agents.mpc.schedule import Episodic, RecedingHorizon, planning_defaults
+from gp_agents.mpc.schedule import Episodic, RecedingHorizon
 from gp_agents.mpc.settings import RTI, Converged, Residual
 from gp_agents.mpc.tuning import RTITuning, register_rti_tuning, rti_tuning
 
@@ -68,7 +68,6 @@ __all__ = [
     "build_ocp",
     "make_mpc",
     "online_ssgp",
-    "planning_defaults",
     "register_rti_tuning",
     "rti_tuning",
 ]

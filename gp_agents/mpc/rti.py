@@ -129,7 +129,7 @@ class RTIPlanner(Planner):
             ``"piqp"``, ...), or ``"active-set:<plugin>"`` / an
             :class:`~gp_agents.mpc.active_set.ActiveSetQP` (primal-dual active-set iterations
             from the shifted plan's active set, that plugin as the fallback); chosen per
-            system by measurement, :func:`gp_agents.mpc.schedule.planning_defaults`.
+            system by measurement, :func:`gp_agents.defaults.default_planning`.
         qp_options: CasADi options of the plugin (default :data:`QP_SOLVER_OPTIONS`).
         max_violation: largest constraint violation of an accepted step (see module doc).
         levenberg_marquardt: ``mu`` >= 0 added to the QP Hessian's diagonal (``H + mu I``, as

@@ -10,21 +10,12 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from gp_agents.defaults import default_planning
 from gp_agents.mpc.ocp import Mesh
 from gp_agents.mpc.planner import Plan
 from gp_envs.model import ControlModel
-from gp_envs.systems import SYSTEMS, PlanningDefaults
 
-__all__ = ["Episodic", "RecedingHorizon", "planning_defaults"]
-
-
-def planning_defaults(model: ControlModel) -> PlanningDefaults | None:
-    """The registered time scales of ``model``'s system (:class:`gp_envs.PlanningDefaults`:
-    horizon, LG nodes and intervals, nodes per episodic period), or None for a model of an
-    unregistered system (then the horizon must be given). The solvers' per-system tuning is
-    :func:`gp_agents.mpc.tuning.rti_tuning`."""
-    name = model.name
-    return SYSTEMS[name].planning if name in SYSTEMS else None
+__all__ = ["Episodic", "RecedingHorizon"]
 
 
 @dataclass(frozen=True)
@@ -35,10 +26,11 @@ class RecedingHorizon:
     the horizon is polynomial control on ``n_intervals`` LG intervals of ``n_nodes`` nodes.
 
     Args:
-        horizon: seconds (None: the system's :class:`gp_envs.PlanningDefaults`; required for
-            a model of an unregistered system).
+        horizon: seconds (None: the system's
+            :class:`~gp_agents.defaults.PlanningDefaults`, or
+            :func:`~gp_agents.defaults.default_planning`'s for a system without them).
         n_nodes, n_intervals: the LG part (None: the system's defaults; 12 nodes on one
-            interval for an unregistered system). replan_every: ``p`` >= 1.
+            interval for a system without them). replan_every: ``p`` >= 1.
         held_nodes: LG nodes in each held period.
     """
 
@@ -62,20 +54,14 @@ class RecedingHorizon:
                 raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
 
     def resolve(self, model: ControlModel) -> RecedingHorizon:
-        """This horizon with every unset field from ``model``'s system defaults.
-
-        Raises:
-            ValueError: no horizon given for a model of an unregistered system.
-        """
-        defaults = planning_defaults(model)
-        if self.horizon is None and defaults is None:
-            raise ValueError(f"system {model.name!r} is not registered "
-                             f"(gp_envs.register_system): pass horizon=")
+        """This horizon with every unset field from ``model``'s planning defaults
+        (:func:`gp_agents.defaults.default_planning`: its system's, or the defaults for a
+        system without an entry)."""
+        defaults = default_planning(model)
         return replace(
             self, horizon=float(defaults.horizon if self.horizon is None else self.horizon),
-            n_nodes=int((defaults.n_nodes if defaults else 12) if self.n_nodes is None
-                        else self.n_nodes),
-            n_intervals=int((defaults.n_intervals if defaults else 1) if self.n_intervals is None
+            n_nodes=int(defaults.n_nodes if self.n_nodes is None else self.n_nodes),
+            n_intervals=int(defaults.n_intervals if self.n_intervals is None
                             else self.n_intervals),
             replan_every=int(self.replan_every), held_nodes=int(self.held_nodes))
 
@@ -125,10 +111,10 @@ class Episodic:
 
     def resolve(self, model: ControlModel) -> Episodic:
         """This schedule with every unset field from ``model``'s task and system defaults."""
-        defaults = planning_defaults(model)
+        defaults = default_planning(model)
         return Episodic(float(model.task.duration if self.duration is None else self.duration),
-                        int((defaults.nodes_per_period if defaults else 3)
-                            if self.nodes_per_period is None else self.nodes_per_period))
+                        int(defaults.nodes_per_period if self.nodes_per_period is None
+                            else self.nodes_per_period))
 
     def mesh(self, dt: float) -> Mesh:
         """Every period of the task held (a resolved schedule)."""

@@ -1,8 +1,8 @@
 """Per-system tuning of this package's solvers, keyed by system name.
 
-A system (:func:`gp_envs.register_system`) declares only its time scales
-(:class:`gp_envs.PlanningDefaults`: horizon and resolution). How *this* controller's real-time
-iteration solves its QPs on that system is controller tuning and lives here:
+A system's time scales (horizon and resolution) are the controllers' defaults of
+:mod:`gp_agents.defaults`. How *this* controller's real-time iteration solves its QPs on that
+system is solver tuning and lives here:
 :class:`RTITuning`, registered with :func:`register_rti_tuning` and read by
 :func:`rti_tuning` when an MPC with ``scheme=RTI(...)`` is built without an explicit setting.
 
@@ -48,8 +48,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from gp_agents.defaults import is_registered
 from gp_envs.model import ControlModel
-from gp_envs.systems import SYSTEMS
 
 __all__ = ["RTI_TUNING", "RTITuning", "register_rti_tuning", "rti_tuning"]
 
@@ -145,4 +145,4 @@ def rti_tuning(model: ControlModel | str) -> RTITuning:
     name = model if isinstance(model, str) else model.name
     if name in RTI_TUNING:
         return RTI_TUNING[name]
-    return RTITuning() if name in SYSTEMS else UNREGISTERED
+    return RTITuning() if is_registered(name) else UNREGISTERED

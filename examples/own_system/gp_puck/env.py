@@ -1,4 +1,4 @@
-"""The puck's env and its registration (the module the entry point names)."""
+"""The puck's env and its registration (the module the ``gp_envs.systems`` entry point names)."""
 
 from typing import ClassVar
 
@@ -6,7 +6,7 @@ import numpy as np
 
 from gp_envs.base import GPEnv, Scenario
 from gp_envs.model import Task, diag
-from gp_envs.systems import PlanningDefaults, System, register_system
+from gp_envs.systems import System, register_system
 from gp_puck import puck
 
 
@@ -34,17 +34,5 @@ class PuckEnv(GPEnv):
         return self.np_random.uniform(-0.05, 0.05, size=2)
 
 
-def data_policy(model, rng):
-    """The initial-data controller: a PD law to a random target (nominal model only)."""
-    target = rng.uniform(-1.0, 1.0)
-
-    def policy(obs, t):
-        return np.array([2.0 * (target - obs[0]) - obs[1]])
-
-    return policy
-
-
-register_system(System(
-    name="puck", env_id="gp_puck/Puck-v0", entry_point="gp_puck.env:PuckEnv",
-    max_episode_steps=30, data_policy=data_policy,
-    planning=PlanningDefaults(horizon=1.0, n_nodes=6, n_intervals=1, nodes_per_period=3)))
+register_system(System(name="puck", env_id="gp_puck/Puck-v0", entry_point="gp_puck.env:PuckEnv",
+                       max_episode_steps=30))
