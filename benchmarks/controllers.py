@@ -37,6 +37,7 @@ from typing import Any
 
 import gymnasium as gym
 
+import gp_envs
 from benchmarks import USER_MODELS_DIR
 from benchmarks.outside_envs import OUTSIDE_ENVS, OutsideEnv
 from benchmarks.systems import benchmark_system
@@ -530,6 +531,11 @@ def build_controller(name: str, env: gym.Env, env_name: str, seed: int,
     if recipe.learner is not None and n_init > 0:
         data = collect_initial_data(data_env or env, n_init, seed=seed, same_system=same_system)
     obs, _ = env.reset(seed=seed, options=options)
+    if recipe.oracle or recipe.recipe == "oracle":
+        try:
+            gp_envs.oracle_model(env)
+        except ValueError as err:  # an outside simulator's truth is not a model
+            raise ControllerUnavailableError(str(err)) from None
     overrides = dict(settings or {})
     if learner is not None:
         overrides["learner"] = learner
@@ -556,6 +562,10 @@ def _build_rl(recipe: ControllerRecipe, env: gym.Env, env_name: str, seed: int,
     shipped one); its record names the model directory, plus ``model_source="user"`` for a
     user's model (a shipped one's record is as it always was)."""
     algo = str(recipe.algo)
+    if ENVS[env_name].outside is not None:
+        raise ControllerUnavailableError(
+            f"no {recipe.label} model for env {env_name}: benchmarks.rl.train trains on the "
+            f"registered gp_envs systems only, not on outside simulators")
     path = rl_model_dir(env_name, algo, models)
     if not (path / "metadata.json").is_file() or not (path / "model.zip").is_file():
         where = " or ".join(str(d / env_name / algo) for d in rl_model_dirs(models))

@@ -523,6 +523,50 @@ def data_efficiency(seeds: Sequence[int] = DATA_EFFICIENCY_SEEDS,
         tuple(specs), ("data_efficiency", "summary"))
 
 
+OWN_ENV_SEEDS = tuple(range(2000, 2010))
+"""Evaluation seeds of the own-env preset: used by no other preset and for no tuning (the
+choices it rests on were made on Pendulum-v1 seeds 1000-1009 and DMC cart-pole seeds 0-9:
+``docs/studies/own_env.md``)."""
+OWN_ENV_LEARNERS = ("robust-mpc", "paper-mpc", "blackbox-mpc")
+"""The learning recipes of the own-env preset."""
+
+
+def own_env(seeds: Sequence[int] = OWN_ENV_SEEDS) -> Experiment:
+    """Outside simulators through :func:`gp_envs.wrap` (:mod:`benchmarks.outside_envs`):
+    Gymnasium's Pendulum-v1 with a nominal mass 60% low, and DeepMind Control's cart-pole
+    swing-up (MuJoCo) at 0.05 s with 0-200 initial samples, at DMC's own 0.01 s, and with the
+    declared out-of-family friction; data collected as a user does
+    (``collect_initial_data(env, n, seed=s)``)."""
+    cell = Cell(data="own")
+    references = ("nominal-mpc", "oracle-mpc", "sac")
+
+    def grid(env: str, scenario: str, n_inits: Sequence[int],
+             refs: Sequence[str] = references) -> list[TrialSpec]:
+        out = [TrialSpec("episode", env, scenario, c, s, n_init=0, cell=cell)
+               for c in refs for s in seeds]
+        out += [TrialSpec("episode", env, scenario, c, s, n_init=n, cell=cell)
+                for n in n_inits for c in OWN_ENV_LEARNERS for s in seeds]
+        return out
+
+    specs = [*grid("pendulum-v1", "light", (100,)),
+             *grid("dmc-cartpole", "swingup", (0, 20, 50, 200)),
+             *grid("dmc-cartpole", "swingup-friction", (200,), ("nominal-mpc", "sac")),
+             *grid("dmc-cartpole", "swingup-0.01", (1000,), ("nominal-mpc",))]
+    return Experiment(
+        "own-env", "Your env, your simulator: outside truths through gp_envs.wrap",
+        "Gymnasium's Pendulum-v1 (its own step, speed clip and reward; the nominal model's "
+        "mass 60% low; the oracle plans with the correct mass) with 100 initial samples, and "
+        "DeepMind Control's cartpole/swingup (MuJoCo physics and reward untouched; nominal: "
+        "the package's point-mass cart pole with cartpole.xml's numbers) at a 0.05 s control "
+        "period (action repeat 5) with 0, 20, 50 and 200 initial samples, with the declared "
+        "out-of-family Coulomb friction (gp_envs.dmc.CARTPOLE_FRICTION), and at DMC's own "
+        "0.01 s with 1000; the learning recipes' data as a user collects them, on evaluation "
+        f"seeds {seeds[0]}-{seeds[-1]}. What answers: does the package's recommended recipe "
+        "reach the published returns on a truth it did not write, and does any learning recipe "
+        "end below the nominal MPC it starts from.",
+        tuple(specs), ("own_env", "summary"))
+
+
 PRESETS: dict[str, Preset] = {
     "quick": Preset("quick", "a couple of minutes: the main controllers on every env",
                     (quick(),)),
@@ -551,6 +595,9 @@ PRESETS: dict[str, Preset] = {
     "data-efficiency": Preset("data-efficiency", "success and interaction time against the "
                               "data used, with PILCO's and GP-MPC's published figures (long; "
                               "not part of full)", (data_efficiency(),)),
+    "own-env": Preset("own-env", "outside simulators through gp_envs.wrap: Pendulum-v1 and "
+                      "DeepMind Control's cart-pole (needs the mujoco extra; not part of full)",
+                      (own_env(),)),
     "full": Preset("full", "everything: all experiments above except quick",
                    (paper_tables(), dubins(), sample_efficiency(), compute(), peers(),
                     mpc_acceptance())),

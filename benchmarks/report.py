@@ -89,7 +89,8 @@ SUMMARY_COLUMNS = (
     "interaction_mean_s", "interaction_ci_low", "interaction_ci_high",
     "trials_success_rate", "trials_success_ci_low", "trials_success_ci_high",
     "trials_to_success_mean", "interaction_trials_mean_s", "interaction_trials_ci_low",
-    "interaction_trials_ci_high",
+    "interaction_trials_ci_high", "return_mean", "return_ci_low", "return_ci_high",
+    "residual_off_steps_mean",
 )
 PACKAGES = ("gp-pseudospectral-mpc", "numpy", "scipy", "casadi", "gymnasium", "matplotlib",
             "torch", "stable-baselines3", "do-mpc", "dask", "distributed", "tqdm")
@@ -371,6 +372,7 @@ def summarize(experiment: str, trials: Sequence[Trial]) -> list[dict[str, Any]]:
         n_success = int(sum(bool(x["success"]) for x in m))
         success_ci = wilson_ci(n_success, len(m))
         cost_ci = mean_ci(costs)
+        returns = [x.get("return", math.nan) for x in m]
         interaction = [x.get("interaction_s", math.nan) for x in m]
         multi = [x for x in m if "trials" in x]
         n_trials_success = int(sum(np.isfinite(x["trials_to_success"]) for x in multi))
@@ -388,6 +390,11 @@ def summarize(experiment: str, trials: Sequence[Trial]) -> list[dict[str, Any]]:
             "plan_plant_defect_max": max([x.get("plan_plant_defect", math.nan) for x in m],
                                          default=math.nan),
             "cost_mean": _mean(costs), "cost_std": float(costs.std()) if costs.size else math.nan,
+            # the env's own return (an outside env's reward is its own, not minus the cost)
+            "return_mean": _mean(returns), "return_ci_low": mean_ci(returns)[0],
+            "return_ci_high": mean_ci(returns)[1],
+            "residual_off_steps_mean": _mean([x.get("residual_off_steps", math.nan)
+                                              for x in m]),
             "cost_median": float(np.median(costs)) if costs.size else math.nan,
             "time_to_success_mean_s": _mean([x["time_to_success_s"] for x in m]),
             # over the episodes that succeeded (NaN for the others)
@@ -1444,6 +1451,107 @@ def section_data_efficiency(ctx: Context, exp: Experiment) -> list[str]:
     return lines
 
 
+@dataclass(frozen=True)
+class PublishedReturn:
+    """A published return on a DeepMind Control task, computed from its authors' result files.
+
+    Attributes:
+        method: who. steps: environment (physics) steps of interaction, action repeat
+            included. mean, low, high: the return's mean, min and max over the published
+            seeds. source: the file (repository, path, commit).
+    """
+
+    method: str
+    steps: int
+    mean: float
+    low: float
+    high: float
+    source: str
+
+
+_TDMPC2 = "nicklashansen/tdmpc2 at e9f5932, results/{}/cartpole-swingup.csv (3 seeds)"
+PUBLISHED_RETURNS: dict[str, tuple[PublishedReturn, ...]] = {
+    "dmc-cartpole": (
+        PublishedReturn("TD-MPC2", 100_000, 839.4, 789.8, 867.9, _TDMPC2.format("tdmpc2")),
+        PublishedReturn("TD-MPC2", 4_000_000, 877.2, 866.2, 883.0, _TDMPC2.format("tdmpc2")),
+        PublishedReturn("TD-MPC", 100_000, 863.1, 850.7, 877.5, _TDMPC2.format("tdmpc")),
+        PublishedReturn("TD-MPC", 4_000_000, 882.9, 882.9, 883.0, _TDMPC2.format("tdmpc")),
+        PublishedReturn("SAC", 100_000, 835.0, 825.8, 844.8, _TDMPC2.format("sac")),
+        PublishedReturn("SAC", 4_000_000, 825.5, 790.5, 855.2, _TDMPC2.format("sac")),
+        PublishedReturn("DreamerV3", 100_000, 676.7, 637.2, 718.6, _TDMPC2.format("dreamerv3")),
+        PublishedReturn("DreamerV3", 200_000, 795.6, 774.0, 811.9, _TDMPC2.format("dreamerv3")),
+        PublishedReturn("DreamerV3", 3_900_000, 830.2, 820.9, 839.1,
+                        _TDMPC2.format("dreamerv3")),
+    ),
+}
+"""Published returns beside the own-env section's table, by benchmark env. The steps count
+environment steps with TD-MPC2's action repeat of 2 included (its ``envs/dmcontrol.py``), so
+100k steps are 50k agent decisions; returns are over DMC's 1000-step episodes."""
+
+
+@functools.cache
+def _physics_steps_per_step(env: str, scenario: str) -> int:
+    """Simulator steps per env step of benchmark env ``env`` (a DMC env's action repeat; 1
+    for every other)."""
+    made = make_env(env, scenario)
+    try:
+        repeat = made.get_wrapper_attr("action_repeat")
+    except AttributeError:
+        repeat = 1
+    finally:
+        made.close()
+    return int(repeat) if isinstance(repeat, int) else 1
+
+
+def section_own_env(ctx: Context, exp: Experiment) -> list[str]:
+    """Outside simulators (:mod:`benchmarks.outside_envs`): the env's own return with 95%
+    intervals per recipe and initial data, the data in simulator steps, how often the learned
+    residual was switched off, the act latency; the published returns beside DMC's task."""
+    by: dict[tuple[str, str], list[dict[str, Any]]] = defaultdict(list)
+    for r in ctx.summaries[exp.name]:
+        by[(r["env"], r["scenario"])].append(r)
+    header = ["controller", "initial samples", "episodes", "return [95% CI]",
+              "success [95% CI]", "simulator steps of data", "residual off (steps of the "
+              "episode)", "act median (ms)", "status"]
+    lines = ["", "*return*: the env's own reward summed over the episode (DMC's, 0-1000; "
+             "Pendulum-v1's, at most 0), mean over the evaluation seeds with its BCa 95% "
+             "interval; *success*: the nominal model's task (`info['success']`, held at the "
+             "goal for its hold time), Wilson interval; *simulator steps of data*: the initial "
+             "data and the episode, in the simulator's own steps (DMC: env steps times the "
+             "action repeat); *residual off*: steps in which the learner's nominal fallback "
+             "had switched the learned residual off because it predicted the newest samples "
+             "worse than the nominal model (mean over episodes; '-' without a learner)."]
+    for (env, scenario), rows in by.items():
+        repeat = _physics_steps_per_step(env, scenario)
+        rows = sorted(rows, key=lambda r: (CONTROLLERS[r["controller"]].learner is not None,
+                                           r["controller"], r["n_init"]))
+        body = []
+        for r in rows:
+            learning = CONTROLLERS[r["controller"]].learner is not None
+            body.append([
+                r["label"], r["n_init"] if learning else "-", r["episodes"],
+                f"{_fmt(r['return_mean'], 1)} "
+                f"{_interval(r['return_ci_low'], r['return_ci_high'], 1)}",
+                f"{_fmt(r['success_rate'])} {_interval(r['success_ci_low'], r['success_ci_high'])}",
+                _fmt(r["data_steps_mean"] * repeat, 0),
+                _fmt(r["residual_off_steps_mean"], 1) if learning else "-",
+                _fmt(r["act_median_ms"], 1), r["status"]])
+        lines += ["", f"### {_env_title(env, scenario)}", ""]
+        lines += markdown_table(header, body, ["---"] + ["---:"] * 7 + ["---"])
+        published = PUBLISHED_RETURNS.get(env, ())
+        if published and scenario == ENVS[env].default_scenario:
+            lines += ["", "Published returns on the same task (cited, computed from the "
+                      "authors' result files, not measured here): mean [min, max] over their "
+                      "seeds. Their setting differs: they learn from the reward and pixels or "
+                      "DMC's observation alone, with no physics prior and no state in a "
+                      "model's coordinates, at action repeat 2.", ""]
+            lines += markdown_table(
+                ["method", "environment steps", "return [min, max]", "source"],
+                [[p.method, f"{p.steps:,}", f"{p.mean:.1f} [{p.low:.1f}, {p.high:.1f}]",
+                  p.source] for p in published], ["---", "---:", "---:", "---"])
+    return lines
+
+
 def _time_varying(row: dict[str, Any]) -> bool:
     """Whether a summary row is of a time-varying scenario (it has recovery times to show)."""
     return bool(_env_model_changes(row["env"], row["scenario"]))
@@ -1456,6 +1564,7 @@ def _env_model_changes(env: str, scenario: str) -> tuple[Any, ...]:
 
 SECTIONS: dict[str, SectionFn] = {
     "summary": section_summary,
+    "own_env": section_own_env,
     "data_efficiency": section_data_efficiency,
     "paper_tables": section_paper_tables,
     "trajectories": section_trajectories,

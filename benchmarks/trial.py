@@ -324,6 +324,11 @@ def _episode_result(spec: TrialSpec, env: Any, built: BuiltController,
         "rti_recovery_iterations": (int(agent.health()["rti_recovery_iterations"]) if is_mpc
                                     else float("nan")),
         "rti_rejected": int(agent.health()["rti_rejected"]) if is_mpc else float("nan"),
+        # steps whose learned residual was switched off by the learner's nominal fallback
+        # (it predicted the newest samples worse than the nominal model; NaN without learning)
+        "residual_off_steps": (int(np.sum(~np.asarray(agent.diagnostics_arrays()
+                                                      ["residual_on"], bool)))
+                               if is_mpc and learning and agent.diagnostics else float("nan")),
         "degraded": bool(agent.health()["degraded"]) if is_mpc else False,
         "build_s": build_s,
         "episode_s": episode_s,

@@ -50,6 +50,9 @@ class StepRecord:
         preparation_time: seconds of ``act_time`` spent after the action was known (the
             ``"rti-split"`` scheme's learner update and preparation; 0 otherwise): the
             latency is ``act_time - preparation_time``.
+        residual_on: the learned residual was in use after this call's update (False without
+            a learner, and while a learner's nominal fallback has switched it off because it
+            predicted the newest samples worse than the nominal model).
     """
 
     step: int
@@ -67,6 +70,7 @@ class StepRecord:
     solves: int = 0
     linearization_error: float = 0.0
     preparation_time: float = 0.0
+    residual_on: bool = False
 
 
 def records_to_arrays(records: list[StepRecord]) -> dict[str, np.ndarray]:
