@@ -8,7 +8,7 @@ export OMP_NUM_THREADS ?= 1
 # README's table are generated from them); gp-bench's own default is
 # ./benchmark-results/<preset>, so these targets pass --out.
 .PHONY: docs bench bench-recommended bench-full bench-acceptance bench-linearized bench-rti bench-compute \
-	bench-pendulum bench-robustness bench-data-efficiency test throughput clean
+	bench-pendulum bench-robustness bench-data-efficiency bench-own-env test throughput clean
 
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -49,6 +49,10 @@ bench-robustness: $(VENV)/.installed  # the online-learning envelope: ~3,200 epi
 
 bench-data-efficiency: $(VENV)/.installed  # success and interaction before success vs data, PILCO's cart pole (~70 min on 2 cores)
 	$(PY) -m benchmarks --preset data-efficiency --workers 2 --out benchmarks/results/data-efficiency
+
+bench-own-env: $(VENV)/.installed  # outside simulators: Pendulum-v1, DMC's cart-pole in MuJoCo (~15 min on 2 cores)
+	$(PY) -m benchmarks --preset own-env --workers 2 --out benchmarks/results/own-env
+	$(PY) -m benchmarks.update_readme own-env
 
 test: $(VENV)/.installed
 	$(PY) -m ruff check .

@@ -429,9 +429,9 @@ def make_env(env: str, scenario: str, **options: Any) -> gym.Env:
     check_env_scenario(env, scenario)
     info = ENVS[env]
     if info.outside is not None:
-        given = {k: v for k, v in options.items()
-                 if v is not None and v is not False and not (k == "time_varying" and v)
-                 and not (isinstance(v, (int, float)) and v == 0)}
+        # zeros, None and time_varying (an outside env has no scenario changes) change nothing
+        given = {k: v for k, v in options.items() if k != "time_varying" and v is not None
+                 and not (isinstance(v, (int, float)) and not isinstance(v, bool) and v == 0)}
         if given:
             raise ValueError(f"env {env} is an outside simulator ({info.outside.description}): "
                              f"{', '.join(sorted(given))} cannot apply to it (its truth is "

@@ -30,8 +30,10 @@ import numpy as np
 
 import gp_envs
 from gp_envs import ControlModel, Task
+from gp_envs.systems import load_system_plugins
 
-__all__ = ["OUTSIDE_ENVS", "OutsideEnv", "pendulum_v1_model"]
+__all__ = ["OUTSIDE_ENVS", "OutsideEnv", "pendulum_v1_model", "pendulum_v1_state",
+           "register_outside_env"]
 
 
 @dataclass(frozen=True)
@@ -88,13 +90,13 @@ def pendulum_v1_model(mass: float) -> ControlModel:
         dynamic_indices=(1,))
 
 
-def _pendulum_state(obs: np.ndarray) -> np.ndarray:
+def pendulum_v1_state(obs: np.ndarray) -> np.ndarray:
     """``[cos theta, sin theta, thetadot]`` -> ``[theta, thetadot]``."""
     return np.array([np.arctan2(obs[1], obs[0]), obs[2]])
 
 
 def _pendulum_light() -> gym.Env:
-    return gp_envs.wrap(gym.make("Pendulum-v1"), pendulum_v1_model(0.4), state=_pendulum_state,
+    return gp_envs.wrap(gym.make("Pendulum-v1"), pendulum_v1_model(0.4), state=pendulum_v1_state,
                         true_model=pendulum_v1_model(1.0))
 
 
@@ -111,7 +113,7 @@ def _dmc_cartpole(action_repeat: int, friction: bool = False) -> Callable[[], gy
     return make
 
 
-OUTSIDE_ENVS: Mapping[str, OutsideEnv] = {
+OUTSIDE_ENVS: dict[str, OutsideEnv] = {
     "pendulum-v1": OutsideEnv(
         "pendulum-v1", {"light": _pendulum_light}, "light",
         "Gymnasium's Pendulum-v1 with a nominal model 60% light (gp_envs.wrap)"),
@@ -121,5 +123,34 @@ OUTSIDE_ENVS: Mapping[str, OutsideEnv] = {
         "DeepMind Control's cartpole/swingup (MuJoCo), the package's cart-pole physics as the "
         "nominal model", requires="dm_control"),
 }
-"""The outside benchmark envs by name."""
+"""The outside benchmark envs by name (:func:`register_outside_env` adds yours)."""
+
+
+def register_outside_env(env: OutsideEnv) -> OutsideEnv:
+    """Make ``env`` a benchmark env (``gp-bench --envs NAME``); returns it. For the benchmark's
+    worker processes to know it too, register it in a module declared in the entry-point group
+    :data:`PLUGIN_GROUP` of your package.
+
+    Raises:
+        TypeError: not an :class:`OutsideEnv`.
+        ValueError: its name is a registered ``gp_envs`` system's, or its default scenario is
+            none of its scenarios.
+    """
+    from gp_envs.systems import SYSTEMS
+
+    if not isinstance(env, OutsideEnv):
+        raise TypeError(f"env must be an OutsideEnv, got {type(env).__name__}")
+    if env.name in SYSTEMS:
+        raise ValueError(f"{env.name!r} is a registered gp_envs system; choose another name")
+    if env.default_scenario not in env.scenarios:
+        raise ValueError(f"{env.name}: default scenario {env.default_scenario!r} is not one of "
+                         f"{list(env.scenarios)}")
+    OUTSIDE_ENVS[env.name] = env
+    return env
+
+
+PLUGIN_GROUP = "benchmarks.outside_envs"
+"""Entry-point group of installed packages' modules that register outside envs; loaded when
+this module is imported."""
+load_system_plugins(PLUGIN_GROUP)
 

@@ -24,12 +24,21 @@ COLUMNS = (
     ("final_distance_mean", "final distance"), ("episodes_with_violation", "episodes w/ violation"),
     ("data_steps_mean", "env steps of data"), ("act_median_ms", "act median (ms)"),
 )
+OUTSIDE_COLUMNS = (
+    ("env", "env"), ("scenario", "scenario"), ("n_init", "initial samples"),
+    ("label", "controller"), ("episodes", "episodes"), ("success_rate", "success rate [95% CI]"),
+    ("return_mean", "env's return [95% CI]"), ("data_steps_mean", "env steps of data"),
+    ("act_median_ms", "act median (ms)"),
+)
+"""The columns of an experiment on outside simulators (whose reward is their own: the return,
+not the cost)."""
 DIGITS = {"success_rate": 2, "cost_mean": 1, "final_distance_mean": 3, "data_steps_mean": 0,
-          "act_median_ms": 1}
+          "act_median_ms": 1, "return_mean": 1}
 
 
 INTERVALS = {"success_rate": ("success_ci_low", "success_ci_high"),
-             "cost_mean": ("cost_ci_low", "cost_ci_high")}
+             "cost_mean": ("cost_ci_low", "cost_ci_high"),
+             "return_mean": ("return_ci_low", "return_ci_high")}
 """Columns shown with their 95% interval (Wilson for rates, bootstrap of the mean for costs)."""
 
 
@@ -77,12 +86,32 @@ def readme_table(report_dir: Path, experiment: str | None = None) -> str:
     if experiment not in experiments:
         raise ValueError(f"unknown experiment {experiment!r}; present: {', '.join(experiments)}")
     rows = [r for r in rows if r["experiment"] == experiment and r.get("status") != "missing"]
+    from benchmarks.outside_envs import OUTSIDE_ENVS
+
+    if rows and all(r["env"] in OUTSIDE_ENVS for r in rows):
+        return _table(_headline(rows), list(OUTSIDE_COLUMNS))
     columns = list(COLUMNS)
     # the robustness cells and initial-sample counts, where an experiment varies them
     if any(r.get("cell", "fixed truth") != "fixed truth" for r in rows):
         columns.insert(2, ("cell", "cell"))
     if len({r.get("n_init") for r in rows}) > 1:
         columns.insert(columns.index(("label", "controller")), ("n_init", "initial samples"))
+    return _table(rows, columns)
+
+
+def _headline(rows: list[dict[str, str]]) -> list[dict[str, str]]:
+    """The rows that ran, each learning recipe at its largest initial-sample count per (env,
+    scenario) only (the references have none)."""
+    ran = [r for r in rows if r.get("status") != "not available"]
+    largest: dict[tuple[str, str, str], int] = {}
+    for r in ran:
+        key = (r["env"], r["scenario"], r["controller"])
+        largest[key] = max(largest.get(key, 0), int(float(r.get("n_init") or 0)))
+    return [r for r in ran if int(float(r.get("n_init") or 0))
+            == largest[(r["env"], r["scenario"], r["controller"])]]
+
+
+def _table(rows: list[dict[str, str]], columns: list[tuple[str, str]]) -> str:
     lines = ["| " + " | ".join(h for _, h in columns) + " |",
              "|" + "|".join("---" if k in ("env", "scenario", "label", "cell") else "---:"
                             for k, _ in columns) + "|"]

@@ -57,9 +57,16 @@ def summary_rows(path: Path) -> list[dict[str, str]]:
 
 def episode_table(rows: Sequence[dict[str, str]]) -> list[str]:
     """A Markdown table of episode summary rows: controller, episodes, success [95% CI], cost
-    [95% CI], time to success, worst final position error, violations."""
-    header = ["controller", "episodes", "success", "cost", "time to success (s)",
-              "max final position error (m)", "violations"]
+    [95% CI], time to success, worst final position error, violations; for an outside
+    simulator's rows (:mod:`benchmarks.outside_envs`, whose reward is its own), its return
+    [95% CI] and initial samples instead of the cost and the position error."""
+    from benchmarks.outside_envs import OUTSIDE_ENVS
+
+    outside = any(r.get("env") in OUTSIDE_ENVS for r in rows)
+    header = ["controller", "episodes", "success",
+              *(["return", "initial samples"] if outside else ["cost"]),
+              "time to success (s)",
+              *([] if outside else ["max final position error (m)"]), "violations"]
     body = []
     for r in rows:
         def get(name: str, row: dict[str, str] = r) -> float:
@@ -68,9 +75,11 @@ def episode_table(rows: Sequence[dict[str, str]]) -> list[str]:
         body.append([
             f"`{r['controller']}`", str(int(get("episodes"))),
             _interval(get("success_rate"), get("success_ci_low"), get("success_ci_high")),
-            _interval(get("cost_mean"), get("cost_ci_low"), get("cost_ci_high")),
+            *([_interval(get("return_mean"), get("return_ci_low"), get("return_ci_high"), 1),
+               r.get("n_init", "")] if outside else
+              [_interval(get("cost_mean"), get("cost_ci_low"), get("cost_ci_high"))]),
             _fmt(get("time_to_success_mean_s")),
-            _fmt(get("final_position_error_max"), 4),
+            *([] if outside else [_fmt(get("final_position_error_max"), 4)]),
             r.get("violations_total", ""),
         ])
     return _table(header, body)

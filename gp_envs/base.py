@@ -143,6 +143,10 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
     X_LB: ClassVar[np.ndarray]
     X_UB: ClassVar[np.ndarray]
     """State box; leaving it terminates the episode (with the penalty of :meth:`_penalty`)."""
+    PLAN_X_LB: ClassVar[np.ndarray | None] = None
+    PLAN_X_UB: ClassVar[np.ndarray | None] = None
+    """The models' planning box (``x_lb``/``x_ub`` of :attr:`nominal_model`), if it is not the
+    termination box (None: :attr:`X_LB`/:attr:`X_UB`)."""
     ANGLE_INDICES: ClassVar[tuple[int, ...]] = ()
     DYNAMIC_INDICES: ClassVar[tuple[int, ...]]
     """State components driven by forces (see :class:`ControlModel`)."""
@@ -231,7 +235,8 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
             param_names=tuple(self.physics.PARAM_NAMES), params=dict(params),
             state_names=tuple(self.physics.STATE_NAMES),
             control_names=tuple(self.physics.CONTROL_NAMES), dt=self.DT,
-            x_lb=np.asarray(self.X_LB, float), x_ub=np.asarray(self.X_UB, float),
+            x_lb=np.asarray(self.X_LB if self.PLAN_X_LB is None else self.PLAN_X_LB, float),
+            x_ub=np.asarray(self.X_UB if self.PLAN_X_UB is None else self.PLAN_X_UB, float),
             u_lb=np.asarray(self._spec.u_lb, float), u_ub=np.asarray(self._spec.u_ub, float),
             task=self._task(), substeps=self.SUBSTEPS, angle_indices=self.ANGLE_INDICES,
             dynamic_indices=self.DYNAMIC_INDICES, param_ranges=self.physics.PARAM_RANGES,

@@ -42,6 +42,9 @@ BOUND_TOLERANCE = 1e-6
 control bounds, mapped by ``action``, are checked against the env's action space: float32
 rounding of the space's bounds, never a real contradiction."""
 
+GP_ENV_OPTIONS = frozenset({"keep_system", "state"})
+"""The reset options of :class:`gp_envs.base.GPEnv`, refused for any other wrapped env."""
+
 MAX_CORNERS = 10
 """Up to this many controls, every corner of the model's control box is checked against the
 env's action space; above it, the two extreme corners (``u_lb`` and ``u_ub``)."""
@@ -177,7 +180,19 @@ class ModelWrapper(gym.Wrapper[np.ndarray, np.ndarray, Any, Any],
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
               ) -> tuple[np.ndarray, dict[str, Any]]:
         """Reset the env (``seed`` and ``options`` passed on); the observation is the model's
-        state."""
+        state.
+
+        Raises:
+            ValueError: a ``gp_envs`` env's own option (``keep_system``, ``state``) for an env
+                that is not one (it would ignore it or mean something else).
+        """
+        from gp_envs.base import GPEnv
+
+        own = sorted(set(options or {}) & GP_ENV_OPTIONS)
+        if own and not isinstance(self.env.unwrapped, GPEnv):
+            raise ValueError(f"reset option(s) {own} are gp_envs envs' own; "
+                             f"{type(self.env.unwrapped).__name__} is not one (its truth and "
+                             f"start are its own)")
         obs, info = self.env.reset(seed=seed, options=options)
         self._held = self._steps = 0
         x = self.state(obs)

@@ -54,12 +54,13 @@ def test_document_block_runs_as_written(name: str, code: str, tmp_path: Path):
     assert result.returncode == 0, f"{name}:\n{result.stderr[-3000:]}"
 
 
-def test_readme_results_table_is_generated_from_the_committed_summary():
+@pytest.mark.parametrize("preset", ["recommended", "own-env"])
+def test_readme_results_table_is_generated_from_the_committed_summary(preset: str):
     from benchmarks.readme_table import readme_table
 
-    table = readme_table(REPO / "benchmarks" / "results" / "recommended").strip()
+    table = readme_table(REPO / "benchmarks" / "results" / preset).strip()
     readme = (REPO / "README.md").read_text()
-    block = readme.split("<!-- results:recommended -->\n")[1].split("<!-- /results")[0]
+    block = readme.split(f"<!-- results:{preset} -->\n")[1].split("<!-- /results")[0]
     assert block.strip() == table
 
 

@@ -185,3 +185,27 @@ def test_the_nominal_mpc_swings_pendulum_v1_up():
     assert abs(episode.observations[0, 0]) > 2.8  # it started near hanging down
     assert episode.steps == 200 and episode.success
     assert np.all(np.abs(episode.observations[-20:, 0]) < 0.1)
+
+
+def test_a_systems_planning_box_may_differ_from_its_termination_box():
+    """GPEnv.PLAN_X_LB/UB: the nominal model's box; the episode still ends at X_LB/X_UB."""
+    from gp_envs.cartpole_swingup import CartPoleSwingUpEnv
+
+    class Narrow(CartPoleSwingUpEnv):
+        PLAN_X_LB = np.array([-1.0, -np.inf, -10.0, -25.0])
+        PLAN_X_UB = np.array([1.0, np.inf, 10.0, 25.0])
+
+    env = Narrow()
+    np.testing.assert_array_equal(env.nominal_model.x_ub, Narrow.PLAN_X_UB)
+    env.reset(seed=0, options={"state": np.array([1.5, 0.0, 0.0, 0.0])})  # outside the plan box
+    *_, terminated, _, info = env.step(np.zeros(1, np.float32))
+    assert not terminated and info["termination_reason"] is None  # inside the track
+    assert gp_envs.oracle_model(env).x_ub[0] == 1.0  # the truth's model, the same box
+
+
+@pytest.mark.parametrize("option", [{"keep_system": True}, {"state": np.zeros(2)}])
+def test_gp_envs_own_reset_options_are_refused_for_another_env(option):
+    env = wrapped()
+    with pytest.raises(ValueError, match="gp_envs envs' own"):
+        env.reset(seed=0, options=option)
+    env.reset(seed=0, options={"x_init": 1.0, "y_init": 0.5})  # Pendulum-v1's own pass
