@@ -68,7 +68,7 @@ METRIC_COLUMNS = (
     "rti_rejected", "degraded", "plan_plant_defect",
     "build_s", "episode_s", "max_steps", "message", "n_init", "initial_data_steps",
     "at_goal_since_s", "interaction_s", "trials", "trials_to_success", "interaction_trials_s",
-    "trial_successes", "trial_costs", "data_steps_trials",
+    "trial_successes", "trial_costs", "data_steps_trials", "return", "residual_off_steps",
 )
 TIME_COLUMNS = ("act_median_ms", "act_p95_ms", "act_max_ms", "build_s", "episode_s")
 """The columns of ``metrics.csv`` that are wall-clock times: the only ones a run's machine load
