@@ -111,6 +111,7 @@ _DEFAULTS: dict[str, SystemDefaults] = {
     "dmc_cartpole": SystemDefaults(PlanningDefaults(horizon=1.5, n_nodes=16, n_intervals=1),
                                    cartpole_data_policy),
 }
+_DEFAULTS["mujoco_cartpole"] = _DEFAULTS["dmc_cartpole"]  # the same cart pole as a gp_envs env
 
 
 def register_defaults(name: str, defaults: SystemDefaults) -> SystemDefaults:

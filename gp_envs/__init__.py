@@ -27,6 +27,7 @@ import numpy as np
 
 from gp_envs import (  # noqa: F401  (each module registers its system)
     cartpole_swingup,
+    dmc,
     dubins_obstacle,
     pendulum_swingup,
     pilco_cartpole,

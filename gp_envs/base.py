@@ -12,7 +12,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Protocol
 
 import gymnasium as gym
 import numpy as np
@@ -36,6 +36,17 @@ NOISE_STREAM = 0x6F62736E6F697365
 """Second key of the observation-noise generator's seed, ``default_rng([seed, NOISE_STREAM])``:
 the noise has its own stream, so the initial states and parameter draws of a seed are the same
 with and without noise."""
+
+
+class Plant(Protocol):
+    """The truth that steps an env's state: the package's ODE with hidden parameter values (a
+    :class:`~gp_envs.model.ControlModel`, the default), or an outside simulator
+    (:meth:`GPEnv._make_plant`, e.g. MuJoCo in :class:`gp_envs.dmc.MuJoCoCartPoleEnv`)."""
+
+    def step(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """The state (n,) one control period after state ``x`` (n,) under control ``u`` (m,)
+        held constant."""
+        ...
 
 
 @dataclass(frozen=True)
@@ -134,6 +145,10 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
     """Physics module: ``PARAM_NAMES``, ``STATE_NAMES``, ``CONTROL_NAMES``, ``ode``."""
     NAME: ClassVar[str | None] = None
     """The name of the env's models (None: the physics module's short name)."""
+    OUTSIDE_PLANT: ClassVar[bool] = False
+    """True: the truth is an outside simulator (:meth:`_make_plant`), which has no parameter
+    values to draw or override: ``randomize``, ``true_params`` and a scenario's changes raise,
+    and :func:`gp_envs.oracle_model` has no true model to give."""
     SCENARIOS: ClassVar[dict[str, Scenario]]
     DEFAULT_SCENARIO: ClassVar[str]
     DT: ClassVar[float]
@@ -177,10 +192,22 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
         if not time_varying:
             spec = dataclasses.replace(spec, changes=())
         self._spec = spec
-        self._plant = self._make_model(truth)  # checks the true parameters' ranges
-        self._base_truth = dict(self._plant.params)
-        self._check_changes()
-        self._check_randomized_range()
+        if self.OUTSIDE_PLANT:
+            asked = [name for name, given in (("randomize", self.randomize > 0),
+                                              ("true_params", bool(true_params)),
+                                              ("the scenario's changes", bool(spec.changes)))
+                     if given]
+            if asked:
+                raise ValueError(f"{type(self).__name__}: its truth is an outside simulator, "
+                                 f"whose parameters are its own: {', '.join(asked)} cannot "
+                                 f"apply to it")
+            self._plant: Plant = self._make_plant({})
+            self._base_truth: dict[str, float] = {}
+        else:
+            self._plant = self._make_plant(truth)  # checks the true parameters' ranges
+            self._base_truth = dict(self._make_model(truth).params)
+            self._check_changes()
+            self._check_randomized_range()
         self.observation_noise = self._check_noise(observation_noise)
         self._noise_rng: np.random.Generator | None = None
         self._episode_truth = dict(self._base_truth)
@@ -242,8 +269,22 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
             dynamic_indices=self.DYNAMIC_INDICES, param_ranges=self.physics.PARAM_RANGES,
         )
 
+    def _make_plant(self, truth: Mapping[str, float]) -> Plant:
+        """The truth that steps the state for parameter values ``truth``: the package's ODE
+        (the true :class:`~gp_envs.model.ControlModel`). An env whose truth is an outside
+        simulator sets :attr:`OUTSIDE_PLANT` and returns its simulator (``truth`` is then
+        empty); it is made once, at construction."""
+        return self._make_model(truth)
+
     def _oracle(self) -> ControlModel:
-        """The true model of the current episode; only :func:`gp_envs.oracle_model` uses it."""
+        """The true model of the current episode; only :func:`gp_envs.oracle_model` uses it.
+
+        Raises:
+            ValueError: the truth is an outside simulator (:attr:`OUTSIDE_PLANT`).
+        """
+        if self.OUTSIDE_PLANT or not isinstance(self._plant, ControlModel):
+            raise ValueError(f"{type(self).__name__}: the truth is an outside simulator, not a "
+                             f"model: there is no true model for an oracle")
         return self._plant
 
     def _check_noise(self, noise: float | Sequence[float]) -> np.ndarray:
@@ -313,7 +354,8 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
             for k in truth:
                 if k != "g":
                     truth[k] *= 1.0 + rng.uniform(-self.randomize, self.randomize)
-        self._plant = self._make_model(truth)
+        if not self.OUTSIDE_PLANT:
+            self._plant = self._make_plant(truth)
         self._episode_truth, self._next_change = truth, 0
         if self._spec.nominal_spread:
             nominal = dict(self._spec.nominal)
@@ -330,7 +372,7 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
             k += 1
         if k != self._next_change:
             self._next_change = k
-            self._plant = self._make_model(self._changed(self._episode_truth, k))
+            self._plant = self._make_plant(self._changed(self._episode_truth, k))
 
     def _observed(self, state: np.ndarray) -> np.ndarray:
         """The observation the agent gets of ``state``: :meth:`_observe` of the state plus the
@@ -396,7 +438,8 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
         elif self._noise_rng is None:
             self._noise_rng = np.random.default_rng()
         if keep:
-            self._plant = self._make_model(self._episode_truth)
+            if not self.OUTSIDE_PLANT:
+                self._plant = self._make_plant(self._episode_truth)
             self._next_change = 0
         else:
             self._draw_episode_models()

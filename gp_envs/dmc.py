@@ -36,8 +36,11 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from gp_envs.base import Scenario
+from gp_envs.cartpole_swingup import CartPoleSwingUpEnv
 from gp_envs.model import ControlModel, ReadOnlyMapping, Task, diag
 from gp_envs.physics import cartpole
+from gp_envs.systems import System, register_system
 
 _INSTALL_HINT = 'pip install "gp-pseudospectral-mpc[mujoco]"'
 _DMC_SEED_LIMIT = 2**32  # numpy.random.RandomState (DMC's task RNG) takes seeds below 2**32
@@ -352,6 +355,28 @@ _LENGTHS = {
 }
 
 
+def cartpole_task() -> Task:
+    """The task of :func:`cartpole_nominal_model` (its docstring says where the weights come
+    from): upright and centred, DMC's "swung up" bounds held for 1 s, DMC's 10 s."""
+    Q = diag([2.3, 2.0, 0.05, 0.37])
+    return Task(
+        goal=np.array([0.0, np.pi, 0.0, 0.0]), Q=Q, R=diag([0.016]), Qf=10.0 * Q,
+        u_ref=np.zeros(1),
+        goal_tolerance=np.array([0.25, float(np.arccos(0.995)), np.inf, np.inf]),
+        hold_time=1.0, duration=CARTPOLE_TIME_LIMIT, periodic_indices=(1,),
+    )
+
+
+def cartpole_params(length: str = "com") -> dict[str, float]:
+    """:mod:`gp_envs.physics.cartpole`'s parameters with ``cartpole.xml``'s numbers (``l`` by
+    ``length``, see :func:`cartpole_nominal_model`)."""
+    if length not in _LENGTHS:
+        raise ValueError(f"length must be one of {list(_LENGTHS)}, got {length!r}")
+    xml = CARTPOLE_XML_PARAMS
+    return {"mc": xml["cart_mass"], "mp": xml["pole_mass"], "l": _LENGTHS[length],
+            "b1": xml["slider_damping"], "b2": xml["hinge_damping"], "g": xml["gravity"]}
+
+
 def cartpole_nominal_model(action_repeat: int = 5, *, length: str = "com") -> ControlModel:
     """Nominal model of DMC's cart-pole in this package's cart-pole physics.
 
@@ -400,17 +425,10 @@ def cartpole_nominal_model(action_repeat: int = 5, *, length: str = "com") -> Co
     xml = CARTPOLE_XML_PARAMS
     f_max = xml["gear"] * xml["ctrl_max"]
     f_min = xml["gear"] * xml["ctrl_min"]
-    Q = diag([2.3, 2.0, 0.05, 0.37])
-    task = Task(
-        goal=np.array([0.0, np.pi, 0.0, 0.0]), Q=Q, R=diag([0.016]), Qf=10.0 * Q,
-        u_ref=np.zeros(1),
-        goal_tolerance=np.array([0.25, float(np.arccos(0.995)), np.inf, np.inf]),
-        hold_time=1.0, duration=CARTPOLE_TIME_LIMIT, periodic_indices=(1,),
-    )
+    task = cartpole_task()
     return ControlModel(
         name="dmc_cartpole", ode=cartpole.ode, param_names=cartpole.PARAM_NAMES,
-        params={"mc": xml["cart_mass"], "mp": xml["pole_mass"], "l": _LENGTHS[length],
-                "b1": xml["slider_damping"], "b2": xml["hinge_damping"], "g": xml["gravity"]},
+        params=cartpole_params(length),
         state_names=cartpole.STATE_NAMES, control_names=cartpole.CONTROL_NAMES,
         dt=CARTPOLE_CONTROL_TIMESTEP * action_repeat,
         x_lb=np.array([xml["slider_min"], -np.inf, -10.0, -25.0]),
@@ -451,3 +469,96 @@ def cartpole_state(obs: np.ndarray) -> np.ndarray:
     theta = np.mod(np.arctan2(o[..., 2], -o[..., 1]), 2 * np.pi)
     theta = np.where(theta >= np.float32(2 * np.pi), 0.0, theta)  # as gp_envs.base.wrap_to_circle
     return np.stack([o[..., 0], theta, o[..., 3], -o[..., 4]], axis=-1)
+
+
+# ===================================================================== a gp_envs env in MuJoCo
+class MuJoCoCartPole:
+    """DMC's cart-pole physics (MuJoCo, ``cartpole.xml``) as a :class:`gp_envs.base.Plant`:
+    it steps the package's state ``[x, theta, xdot, thetadot]`` (theta 0 hanging) under a force
+    in newtons held for ``action_repeat`` of MuJoCo's 0.01 s steps.
+
+    Each step starts from the given state (MuJoCo's solver warm start cleared), so a step
+    depends on the state and the force only.
+
+    Args:
+        action_repeat: MuJoCo steps per control period.
+        dof_frictionloss: Coulomb friction by joint name (:class:`DMCEnv`), or None.
+    """
+
+    def __init__(self, action_repeat: int = 5,
+                 dof_frictionloss: Mapping[str, float] | None = None) -> None:
+        self.action_repeat = _check_action_repeat(action_repeat)
+        self._dmc = DMCEnv("cartpole", "swingup", dof_frictionloss=dof_frictionloss)
+
+    def step(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """The state one control period after ``x`` (4,) under the force ``u`` (1,), N."""
+        physics = self._dmc.physics
+        x = np.asarray(x, dtype=float)
+        with physics.reset_context():
+            physics.data.qpos[:] = [x[0], np.pi - x[1]]
+            physics.data.qvel[:] = [x[2], -x[3]]
+        physics.data.qacc_warmstart[:] = 0.0
+        action = np.clip(cartpole_action(np.asarray(u, float)), CARTPOLE_XML_PARAMS["ctrl_min"],
+                         CARTPOLE_XML_PARAMS["ctrl_max"])
+        for _ in range(self.action_repeat):
+            physics.set_control(action)
+            physics.step()
+        qpos, qvel = physics.data.qpos, physics.data.qvel
+        return np.array([qpos[0], np.pi - qpos[1], qvel[0], -qvel[1]])
+
+
+class MuJoCoCartPoleEnv(CartPoleSwingUpEnv):
+    """DMC's cart-pole in MuJoCo as a ``gp_envs`` env (``gp_envs/MuJoCoCartPole-v0``): the
+    package's observation (the state, the angle wrapped), reward (minus the task's cost),
+    success and hidden-truth API around MuJoCo's physics (:class:`MuJoCoCartPole`, a
+    :class:`~gp_envs.base.Plant` that is not the package's ODE). The nominal model has
+    :func:`cartpole_nominal_model`'s numbers and task; the truth has no parameter values, so
+    ``randomize`` and ``true_params`` raise and there is no oracle. For DMC's own reward and
+    observation, wrap :class:`DMCEnv` with :func:`gp_envs.wrap` instead (the benchmark's
+    ``dmc-cartpole``).
+
+    Scenarios: ``"swingup"`` (``cartpole.xml`` as it is) and ``"friction"``
+    (:data:`CARTPOLE_FRICTION`). Control period 0.05 s (5 MuJoCo steps), 10 s episodes from
+    DMC's swing-up start (cart and pole at rest, hanging, 0.01 noise on every component).
+    The episode ends if the cart leaves ``|x| <= 2.5`` m (MuJoCo's soft rails stop it near
+    1.9 m); the models' planning box keeps it within the rails' 1.8 m.
+    """
+
+    NAME = "mujoco_cartpole"
+    OUTSIDE_PLANT = True
+    ACTION_REPEAT = 5
+    SCENARIOS: ClassVar[dict[str, Scenario]] = {
+        "swingup": Scenario(
+            description="DMC's cartpole.xml in MuJoCo; nominal: the point-mass cart pole with "
+                        "its numbers", true={}, nominal=cartpole_params(),
+            u_lb=(-CARTPOLE_XML_PARAMS["gear"],), u_ub=(CARTPOLE_XML_PARAMS["gear"],)),
+    }
+    SCENARIOS["friction"] = Scenario(
+        description="as swingup, with Coulomb friction on the slider and the hinge "
+                    "(CARTPOLE_FRICTION), which the nominal model cannot represent",
+        true={}, nominal=cartpole_params(), u_lb=SCENARIOS["swingup"].u_lb,
+        u_ub=SCENARIOS["swingup"].u_ub)
+    DEFAULT_SCENARIO = "swingup"
+    DT = CARTPOLE_CONTROL_TIMESTEP * ACTION_REPEAT
+    SUBSTEPS = 5 * ACTION_REPEAT
+    X_LB = np.array([-2.5, -np.inf, -10.0, -25.0])
+    X_UB = np.array([2.5, np.inf, 10.0, 25.0])
+    PLAN_X_LB = np.array([CARTPOLE_XML_PARAMS["slider_min"], -np.inf, -10.0, -25.0])
+    PLAN_X_UB = np.array([CARTPOLE_XML_PARAMS["slider_max"], np.inf, 10.0, 25.0])
+
+    def _task(self) -> Task:
+        return cartpole_task()
+
+    def _initial_state(self) -> np.ndarray:
+        return self.np_random.normal(0.0, 0.01, size=4)
+
+    def _make_plant(self, truth: Mapping[str, float]) -> MuJoCoCartPole:
+        friction = CARTPOLE_FRICTION if self.scenario == "friction" else None
+        return MuJoCoCartPole(self.ACTION_REPEAT, dof_frictionloss=friction)
+
+
+SYSTEM = register_system(System(
+    name="mujoco_cartpole", env_id="gp_envs/MuJoCoCartPole-v0",
+    entry_point="gp_envs.dmc:MuJoCoCartPoleEnv", max_episode_steps=200))
+"""DMC's cart-pole in MuJoCo as a gp_envs system (:mod:`gp_envs.systems`; needs the
+``[mujoco]`` extra to be made)."""

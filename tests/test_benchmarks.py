@@ -97,7 +97,8 @@ def test_unknown_names_raise_clear_errors(capsys: pytest.CaptureFixture[str]) ->
     with pytest.raises(UnknownNameError, match="nominal-mpc"):
         TrialSpec("episode", "cartpole", "online", "lqr", 0).validate()
     with pytest.raises(UnknownNameError,
-                       match="valid envs: cartpole, dubins, pendulum, pilco_cartpole, quadrotor"):
+                       match="valid envs: cartpole, mujoco_cartpole, dubins, pendulum, "
+                             "pilco_cartpole, quadrotor, pendulum-v1, dmc-cartpole"):
         check_env_scenario("acrobot", "online")
     with pytest.raises(UnknownNameError, match="gp, online"):
         check_env_scenario("cartpole", "paper")

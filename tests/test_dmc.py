@@ -352,3 +352,45 @@ def test_nominal_model_one_step_prediction_is_close() -> None:
     worst = np.max(errors, axis=0)
     assert np.all(worst < [1e-3, 0.02, 0.04, 0.8]), worst
     assert worst[3] > 1e-3  # the model is not the truth (a rod is not a point mass)
+
+
+# ------------------------------------------------------------------ a gp_envs env in MuJoCo
+def test_the_mujoco_cartpole_is_a_gp_envs_env_with_an_outside_plant() -> None:
+    import gymnasium as gym
+
+    import gp_envs
+    from gp_envs.dmc import CARTPOLE_FRICTION, MuJoCoCartPoleEnv
+
+    env = gym.make("gp_envs/MuJoCoCartPole-v0")
+    check_env(env.unwrapped, skip_render_check=True)
+    assert gp_envs.nominal_model(env).name == "mujoco_cartpole"
+    with pytest.raises(ValueError, match="randomize cannot apply"):
+        MuJoCoCartPoleEnv(randomize=0.1)
+    with pytest.raises(ValueError, match="true_params cannot apply"):
+        MuJoCoCartPoleEnv(true_params={"mc": 2.0})
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="no true model"):
+        gp_envs.oracle_model(env)
+    plant = MuJoCoCartPoleEnv(scenario="friction")._plant
+    friction = plant._dmc.physics.model.dof_frictionloss
+    np.testing.assert_allclose(friction, [CARTPOLE_FRICTION["slider"],
+                                          CARTPOLE_FRICTION["hinge_1"]])
+
+
+def test_the_mujoco_plant_steps_like_dmc_itself() -> None:
+    """From DMC's own seeded start, the plant's step (state in the package's coordinates, a
+    force in N) gives DMCEnv's next physics state (an independent path: DMC's own stepping)."""
+    from gp_envs.dmc import MuJoCoCartPole
+
+    dmc = DMCEnv("cartpole", "swingup", action_repeat=5)
+    plant = MuJoCoCartPole(5)
+    dmc.reset(seed=3)
+    for action in (0.7, -1.0, 0.2):
+        qpos, qvel = dmc.physics_state()[:2], dmc.physics_state()[2:]
+        x = np.array([qpos[0], np.pi - qpos[1], qvel[0], -qvel[1]])
+        dmc.step(np.array([action], np.float32))
+        nxt = dmc.physics_state()
+        expected = np.array([nxt[0], np.pi - nxt[1], nxt[2], -nxt[3]])
+        # MuJoCo's warm start is the only difference (the plant clears it): round-off level
+        np.testing.assert_allclose(plant.step(x, np.array([10.0 * np.float32(action)])),
+                                   expected, atol=1e-8)
