@@ -562,11 +562,7 @@ def _build_rl(recipe: ControllerRecipe, env: gym.Env, env_name: str, seed: int,
     shipped one); its record names the model directory, plus ``model_source="user"`` for a
     user's model (a shipped one's record is as it always was)."""
     algo = str(recipe.algo)
-    if ENVS[env_name].outside is not None:
-        raise ControllerUnavailableError(
-            f"no {recipe.label} model for env {env_name}: benchmarks.rl.train trains on the "
-            f"registered gp_envs systems only, not on outside simulators")
-    path = rl_model_dir(env_name, algo, models)
+    path = rl_model_dir(env_name, algo, models)  # an outside env's too: trained the same way
     if not (path / "metadata.json").is_file() or not (path / "model.zip").is_file():
         where = " or ".join(str(d / env_name / algo) for d in rl_model_dirs(models))
         raise ControllerUnavailableError(

@@ -18,7 +18,7 @@ exactly as ``gym.make`` returns it::
 Preprocessing (part of the agent, never of the env; standard Gymnasium wrappers for training):
 
 1. :class:`AngleFeatures` replaces every angle ``obs[i]``, ``i`` in
-   ``env.unwrapped.nominal_model.angle_indices``, by ``(cos, sin)`` appended at the end: the
+   ``gp_envs.nominal_model(env).angle_indices``, by ``(cos, sin)`` appended at the end: the
    network sees a continuous feature where the env wraps the angle.
 2. SB3 ``VecNormalize`` running mean/std normalization of those features (statistics frozen
    after training, saved as a pickle).
@@ -47,6 +47,12 @@ A saved agent is a directory::
                        hyperparameters, seed, training steps, wall-clock training time,
                        library versions
 
+A benchmark's outside env (a :func:`gp_envs.wrap`-ped simulator such as DeepMind Control's
+cart-pole, which has no Gymnasium id) is recorded by its benchmark name and scenario (``env_id``
+is the name) plus :func:`env_fingerprint` (simulator configuration, nominal model), which
+:meth:`RLAgent.load` compares: the same benchmark env and scenario load, any other fails with
+the differences listed. Its training reward is its own (no training reward wrappers).
+
 An agent loads from its directory; a relative name is also looked up in the model directories
 (``<env>/<algo>/`` folders) given as ``search``. This library knows no model directory of its
 own (it never imports the benchmark): the policies shipped with the package are package data of
@@ -64,7 +70,7 @@ from __future__ import annotations
 import copy
 import json
 import pickle
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -82,9 +88,9 @@ from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 from gp_agents.agent import rollout as closed_loop
 
 __all__ = ["ALGORITHMS", "AngleFeatures", "BoundedShiftReward", "GoalBonusReward",
-           "NormalizedAction", "RLAgent", "TimeFeature", "get_env_state", "make_training_vec_env",
-           "resolve_model_dir", "rollout", "saved_models", "set_env_state", "termination_terms",
-           "wrap_env"]
+           "NormalizedAction", "RLAgent", "TimeFeature", "env_fingerprint", "episode_limit",
+           "get_env_state", "make_training_vec_env", "resolve_model_dir", "rollout",
+           "saved_models", "set_env_state", "termination_terms", "wrap_env"]
 
 ALGORITHMS: dict[str, type[BaseAlgorithm]] = {"sac": SAC, "ppo": PPO, "tqc": TQC}
 """Supported algorithms by lower-case name (TQC from sb3-contrib)."""
@@ -231,6 +237,80 @@ class TimeFeature(gym.Wrapper):
         return self._with_time(obs), reward, terminated, truncated, info
 
 
+def episode_limit(env: gym.Env) -> int:
+    """The time limit of ``env`` in steps: its spec's ``max_episode_steps`` (a ``gym.make``-made
+    env), else, for an env without one (e.g. a :func:`gp_envs.wrap`-ped DeepMind Control env,
+    whose own time limit truncates it), the nominal model's task duration over its ``dt``.
+
+    Raises:
+        ValueError: neither is known.
+    """
+    spec = env.spec
+    if spec is not None and spec.max_episode_steps:
+        return int(spec.max_episode_steps)
+    import gp_envs
+
+    try:
+        model = gp_envs.nominal_model(env)
+    except TypeError:
+        model = None
+    if model is None or not np.isfinite(model.task.duration) or model.task.duration <= 0:
+        raise ValueError(f"{type(env.unwrapped).__name__} has no known time limit (no spec "
+                         f"max_episode_steps, no nominal model with a task duration)")
+    return max(round(model.task.duration / model.dt), 1)
+
+
+_SIMULATOR_ATTRS = ("domain", "task", "action_repeat", "dof_frictionloss")
+"""Attributes of an outside simulator (:class:`gp_envs.dmc.DMCEnv`'s) recorded in
+:func:`env_fingerprint` when present: they tell its configurations apart."""
+
+
+def _jsonable(x: Any) -> Any:
+    """``x`` as plain JSON data (slices as ``[start, stop]``, arrays as lists)."""
+    if isinstance(x, slice):
+        return [x.start, x.stop]
+    if isinstance(x, Mapping):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, np.ndarray):
+        return _jsonable(x.tolist())
+    if isinstance(x, list | tuple):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, np.generic):
+        return x.item()
+    if x is None or isinstance(x, bool | int | float | str):
+        return x
+    return repr(x)
+
+
+def env_fingerprint(env: gym.Env) -> dict[str, Any]:
+    """What identifies an env that is not a registered ``gp_envs`` system (a benchmark's
+    outside env, :func:`gp_envs.wrap`-ped): the simulator (class, Gymnasium id and kwargs if
+    it has a spec, its configuration attributes :data:`_SIMULATOR_ATTRS`) and the nominal
+    model (name, ``dt``, parameters, control bounds), as JSON data. Two envs made by the same
+    benchmark env and scenario have equal fingerprints; scenarios that differ in the simulator
+    (DMC's action repeat, friction) or in the model (a nominal parameter value) differ.
+
+    Raises:
+        TypeError: ``env`` has no nominal model.
+    """
+    import gp_envs
+
+    model = gp_envs.nominal_model(env)
+    base = env.unwrapped
+    spec = base.spec
+    simulator: dict[str, Any] = {"class": f"{type(base).__module__}.{type(base).__qualname__}",
+                                 "id": spec.id if spec is not None else None,
+                                 "kwargs": _jsonable(dict(spec.kwargs)) if spec else None}
+    for attr in _SIMULATOR_ATTRS:
+        if attr in vars(base):
+            simulator[attr] = _jsonable(dict(vars(base)[attr]) if attr == "dof_frictionloss"
+                                        else vars(base)[attr])
+    return _jsonable({"simulator": simulator,
+                      "model": {"name": model.name, "dt": float(model.dt),
+                                "params": dict(model.params), "u_lb": model.u_lb,
+                                "u_ub": model.u_ub}})
+
+
 def termination_terms(env: gym.Env) -> tuple[float, int, float]:
     """``(dt, T, bound)`` of a ``gp_envs`` env's termination penalty.
 
@@ -335,7 +415,7 @@ def training_wrappers_record(env: gym.Env, reward_shift: bool, goal_bonus: float
                     "what": "+ bonus*dt on steps ending inside the goal tolerance "
                             "(info['at_goal']); changes the task"})
     if time_feature_on:
-        rec.append({"name": "TimeFeature", "max_steps": int(env.spec.max_episode_steps),
+        rec.append({"name": "TimeFeature", "max_steps": episode_limit(env),
                     "what": "observation + [1 - t/T]; the agent rebuilds it from its act count"})
     return rec
 
@@ -343,13 +423,15 @@ def training_wrappers_record(env: gym.Env, reward_shift: bool, goal_bonus: float
 def make_training_vec_env(env_id: str, scenario: str, seed: int, n_envs: int = 1,
                           norm_obs: bool = True, norm_reward: bool = False, gamma: float = 0.99,
                           reward_shift: bool = False, goal_bonus: float = 0.0,
-                          time_feature_on: bool = False) -> VecNormalize:
-    """Vectorized training env: ``gym.make`` -> training reward wrappers -> :func:`wrap_env` ->
-    Monitor -> VecNormalize.
+                          time_feature_on: bool = False,
+                          make_env: Callable[[], gym.Env] | None = None) -> VecNormalize:
+    """Vectorized training env: ``gym.make`` (or ``make_env()``) -> training reward wrappers ->
+    :func:`wrap_env` -> Monitor -> VecNormalize.
 
     Args:
-        env_id: registered id, e.g. ``"gp_envs/CartPoleSwingUp-v0"``.
-        scenario: the env's scenario name.
+        env_id: registered id, e.g. ``"gp_envs/CartPoleSwingUp-v0"`` (only a label when
+            ``make_env`` is given).
+        scenario: the env's scenario name (only a label when ``make_env`` is given).
         seed: seeds the sub-envs' first resets (``seed + i`` for sub-env ``i``).
         n_envs: number of sub-envs (``DummyVecEnv``, one process).
         norm_obs, norm_reward: VecNormalize options (reward normalization is training-only).
@@ -357,8 +439,31 @@ def make_training_vec_env(env_id: str, scenario: str, seed: int, n_envs: int = 1
         reward_shift: apply :class:`BoundedShiftReward`.
         goal_bonus: if > 0, apply :class:`GoalBonusReward` with this bonus per second.
         time_feature_on: append :class:`TimeFeature` to the observation features.
+        make_env: makes each sub-env instead of ``gym.make(env_id, scenario=scenario)``: an
+            env that is not a registered ``gp_envs`` system but has a nominal model (a
+            benchmark's outside env, :func:`gp_envs.wrap`-ped); its reward is its own, so
+            ``reward_shift`` and ``goal_bonus`` are refused for it.
+
+    Raises:
+        ValueError: ``reward_shift`` or ``goal_bonus`` with ``make_env``.
     """
-    import gp_envs  # noqa: F401  (registers the envs)
+    import gp_envs  # registers the envs (and gives outside envs' nominal models)
+
+    if make_env is not None:
+        if reward_shift or goal_bonus:
+            raise ValueError(f"{env_id} ({scenario}) is not a gp_envs system: its reward is "
+                             f"the simulator's own, with no termination penalty to replace "
+                             f"and no goal bonus; train it with the task reward")
+
+        def outside_factory() -> gym.Env:
+            env = make_env()
+            angles = gp_envs.nominal_model(env).angle_indices
+            limit = episode_limit(env) if time_feature_on else None
+            return Monitor(wrap_env(env, angles, limit))
+
+        venv = DummyVecEnv([outside_factory] * n_envs)
+        venv.seed(seed)
+        return VecNormalize(venv, norm_obs=norm_obs, norm_reward=norm_reward, gamma=gamma)
 
     def factory() -> gym.Env:
         env = gym.make(env_id, scenario=scenario)
@@ -397,7 +502,8 @@ def get_env_state(env: gym.Env) -> dict[str, Any]:
         e = e.env
     base = {k: copy.deepcopy(getattr(e, k)) for k in _BASE_KEYS if k in vars(e)}
     return {"layers": layers, "base": base, "base_type": type(e).__name__,
-            "plant_params": dict(e._plant.params), "nominal_params": dict(e.nominal_model.params)}
+            "plant_params": dict(getattr(e._plant, "params", {})),
+            "nominal_params": dict(e.nominal_model.params)}
 
 
 def set_env_state(env: gym.Env, state: Mapping[str, Any]) -> None:
@@ -418,8 +524,8 @@ def set_env_state(env: gym.Env, state: Mapping[str, Any]) -> None:
             setattr(layer, k, copy.deepcopy(v))
     for k, v in state["base"].items():
         setattr(e, k, copy.deepcopy(v))
-    if dict(e._plant.params) != dict(state["plant_params"]):
-        e._plant = e._make_model(dict(state["plant_params"]))
+    if dict(getattr(e._plant, "params", {})) != dict(state["plant_params"]):
+        e._plant = e._make_plant(dict(state["plant_params"]))
     if dict(e.nominal_model.params) != dict(state["nominal_params"]):
         e.nominal_model = e._make_model(dict(state["nominal_params"]))
 
@@ -538,26 +644,43 @@ class RLAgent:
 
     # ------------------------------------------------------------------ persistence
     @classmethod
-    def metadata_for(cls, env: gym.Env, algo: str, **extra: Any) -> dict[str, Any]:
+    def metadata_for(cls, env: gym.Env, algo: str, *, outside_env: tuple[str, str] | None = None,
+                     **extra: Any) -> dict[str, Any]:
         """The metadata record for a model trained on ``env`` (a ``gym.make``-made env).
 
         Args:
             env: the env (unwrapped by us; ``gym.make`` wrappers are fine).
             algo: a key of :data:`ALGORITHMS`.
+            outside_env: ``(name, scenario)`` of the benchmark env ``env`` is, when it is not a
+                registered ``gp_envs`` system (a :func:`gp_envs.wrap`-ped outside simulator,
+                with no Gymnasium id of its own): then ``env_id`` is that name and the record
+                gains ``outside_env`` (name, scenario, :func:`env_fingerprint`), which
+                :meth:`load` checks.
             extra: further fields (``training_steps``, ``seed``, ``hyperparameters``, ...).
         """
-        if env.spec is None:
-            raise ValueError("env has no spec; create it with gym.make")
-        base = env.unwrapped
+        if outside_env is not None:
+            import gp_envs
+
+            name, scenario = outside_env
+            identity: dict[str, Any] = {
+                "env_id": str(name), "scenario": str(scenario),
+                "outside_env": {"name": str(name), "scenario": str(scenario),
+                                "fingerprint": env_fingerprint(env)}}
+            angles = gp_envs.nominal_model(env).angle_indices
+        else:
+            if env.spec is None:
+                raise ValueError("env has no spec; create it with gym.make")
+            base = env.unwrapped
+            identity = {"env_id": env.spec.id, "scenario": getattr(base, "scenario", None)}
+            angles = base.nominal_model.angle_indices
         return {
             "algo": algo,
-            "env_id": env.spec.id,
-            "scenario": getattr(base, "scenario", None),
+            **identity,
             "obs_shape": _shape(env.observation_space.shape),
             "action_shape": _shape(env.action_space.shape),
             "action_low": env.action_space.low.astype(float).tolist(),
             "action_high": env.action_space.high.astype(float).tolist(),
-            "angle_indices": [int(i) for i in base.nominal_model.angle_indices],
+            "angle_indices": [int(i) for i in angles],
             "preprocessing": ["AngleFeatures (cos, sin of angle_indices)",
                               *(["TimeFeature (1 - t/T appended)"]
                                 if extra.get("time_feature_max_steps") else []),
@@ -612,7 +735,9 @@ class RLAgent:
         Raises:
             FileNotFoundError: no saved agent at ``path`` nor in ``search`` (the message lists
                 the agents in ``search``).
-            ValueError: the agent was trained for another env id, scenario or spaces.
+            ValueError: the agent was trained for another env id, scenario or spaces (for
+                an outside env: another simulator configuration or nominal model, see
+                :func:`env_fingerprint`).
         """
         d = resolve_model_dir(path, search)
         meta_file = d / METADATA_FILE
@@ -631,13 +756,36 @@ class RLAgent:
 
     @staticmethod
     def _check_env(meta: Mapping[str, Any], env: gym.Env, where: Path | str) -> None:
-        env_id = env.spec.id if env.spec is not None else None
-        scenario = getattr(env.unwrapped, "scenario", None)
         problems = []
-        if env_id != meta["env_id"]:
-            problems.append(f"env id {env_id!r} != trained {meta['env_id']!r}")
-        if scenario != meta["scenario"]:
-            problems.append(f"scenario {scenario!r} != trained {meta['scenario']!r}")
+        outside = meta.get("outside_env")
+        if outside is not None:  # a benchmark's outside env: no id; its fingerprint says
+            try:
+                fingerprint = env_fingerprint(env)
+            except TypeError:
+                fingerprint = None
+            trained = outside["fingerprint"]
+            if fingerprint != trained:
+                if fingerprint is None:
+                    differ = "this env has no nominal model"
+                else:
+                    keys = [f"{part}.{k}" for part in ("simulator", "model")
+                            for k in sorted(set(trained.get(part, {}))
+                                            | set(fingerprint.get(part, {})))
+                            if trained.get(part, {}).get(k) != fingerprint.get(part, {}).get(k)]
+                    # another simulator or model altogether: say that, not every field
+                    keys = [k for k in keys if k in ("simulator.class", "model.name")] or keys
+                    differ = ("this env differs in " + ", ".join(
+                        f"{k} ({_fingerprint_value(fingerprint, k)!r} != trained "
+                        f"{_fingerprint_value(trained, k)!r})" for k in keys))
+                problems.append(f"trained on the benchmark env {outside['name']!r} scenario "
+                                f"{outside['scenario']!r} (an outside simulator); {differ}")
+        else:
+            env_id = env.spec.id if env.spec is not None else None
+            scenario = getattr(env.unwrapped, "scenario", None)
+            if env_id != meta["env_id"]:
+                problems.append(f"env id {env_id!r} != trained {meta['env_id']!r}")
+            if scenario != meta["scenario"]:
+                problems.append(f"scenario {scenario!r} != trained {meta['scenario']!r}")
         if _shape(env.observation_space.shape) != _shape(meta["obs_shape"]):
             problems.append(f"observation shape {env.observation_space.shape} != trained "
                             f"{tuple(meta['obs_shape'])}")
@@ -653,6 +801,11 @@ class RLAgent:
     def __repr__(self) -> str:
         return (f"RLAgent(algo={self.algo!r}, env_id={self.env_id!r}, scenario={self.scenario!r}, "
                 f"training_steps={self.training_steps}, seed={self.seed})")
+
+
+def _fingerprint_value(fingerprint: Mapping[str, Any], key: str) -> Any:
+    part, _, name = key.partition(".")
+    return fingerprint.get(part, {}).get(name)
 
 
 def _is_saved_agent(d: Path) -> bool:

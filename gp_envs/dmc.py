@@ -129,6 +129,9 @@ class DMCEnv(gym.Env[np.ndarray, np.ndarray]):
         self.domain, self.task = domain, task
         self._env = self._suite.load(domain, task)  # for the specs; reloaded on first reset
         self._friction = self._resolve_friction(dof_frictionloss)
+        self.dof_frictionloss: Mapping[str, float] = ReadOnlyMapping(
+            {k: float(v) for k, v in (dof_frictionloss or {}).items()})
+        """The Coulomb friction set on top of the xml, by joint name (empty: the xml's)."""
         self._apply_friction()
         self._dmc_seed: int | None = None  # seed of the loaded task's RNG (None: spec-only env)
         self._timestep: Any = None

@@ -1,5 +1,5 @@
-"""Train an SB3 baseline (SAC, PPO, TQC) on a registered ``gp_envs`` env, resumably; save
-an RLAgent.
+"""Train an SB3 baseline (SAC, PPO, TQC) on a registered ``gp_envs`` env or a benchmark's
+outside env, resumably; save an RLAgent.
 
 The env is made with ``gym.make`` (same reward, same time limit as every other controller); the
 agent's preprocessing (:mod:`gp_agents.rl`: angle -> cos/sin, optional time feature,
@@ -34,6 +34,20 @@ of installed packages that declare their system module in the entry-point group
 ``gp_envs.systems`` (``[project.entry-points."gp_envs.systems"]`` in the package's
 ``pyproject.toml``, e.g. ``mysystem = "mypkg.mysystem_env"``; ``docs/guide/own-system.md``).
 Then ``gp-bench --envs mysystem --controllers nominal-mpc,sac`` runs the model this saved.
+
+``--env`` also takes the benchmark's outside envs (:data:`benchmarks.outside_envs.OUTSIDE_ENVS`:
+``pendulum-v1``, ``dmc-cartpole``): Gymnasium/DeepMind Control simulators seen through a nominal
+model (:func:`gp_envs.wrap`), made by :func:`benchmarks.controllers.make_env` for training,
+learning-curve evaluation and the benchmark alike. Their reward is the simulator's own (DMC: 0-1
+per physics step, summed over the action repeat): ``--reward bounded-shift`` and ``--goal-bonus``
+(which rewrite a ``gp_envs`` env's termination penalty and goal) are refused. The model's
+metadata names the env by benchmark name (``env_id``) and scenario and records its
+:func:`gp_agents.rl.env_fingerprint`. Their simulators' state is not saved in checkpoints (DMC's
+does not pickle): a resumed run restarts the interrupted training episode (reset seed ``seed +
+env steps``), so it is not bit-identical to an uninterrupted one as a ``gp_envs`` run is::
+
+    python -m benchmarks.rl.train --env dmc-cartpole --scenario swingup --algo sac \\
+        --steps 20000 --seed 0
 
 Run (one core)::
 
@@ -83,6 +97,7 @@ from gp_agents.rl import (
     ALGORITHMS,
     METADATA_FILE,
     RLAgent,
+    episode_limit,
     get_env_state,
     make_training_vec_env,
     rollout,
@@ -116,6 +131,29 @@ ENTRY_POINT_HELP = ('a system of your own: declare the module that calls '
                     'your package\'s pyproject.toml and install the package (see '
                     'docs/guide/own-system.md)')
 """How a user's system becomes an ``--env`` (for the help and the unknown-env message)."""
+
+
+def outside_env_names() -> list[str]:
+    """The benchmark's outside envs (:data:`benchmarks.outside_envs.OUTSIDE_ENVS`, live)."""
+    from benchmarks.outside_envs import OUTSIDE_ENVS
+
+    return list(OUTSIDE_ENVS)
+
+
+def _is_outside(env_id: str) -> bool:
+    return env_id not in ENV_SHORT_NAMES and env_id in outside_env_names()
+
+
+def _env_maker(config: Mapping[str, Any]) -> Callable[[], gym.Env]:
+    """Makes the run's env: ``gym.make(id, scenario=...)``, or for an outside env
+    :func:`benchmarks.controllers.make_env` of its benchmark name and scenario."""
+    env_id, scenario = config["env_id"], config["scenario"]
+    if config.get("outside_env"):
+        from benchmarks.controllers import make_env
+
+        return lambda: make_env(env_id, scenario)
+    return lambda: gym.make(env_id, scenario=scenario)
+
 
 EVAL_SEED0 = 1000
 """First reset seed of the learning-curve evaluation episodes (final evaluation: 0..19)."""
@@ -331,8 +369,9 @@ def save_checkpoint(ckpt_root: Path, model: BaseAlgorithm, venv: VecNormalize,
     if isinstance(model, OffPolicyAlgorithm):
         model.save_replay_buffer(tmp / "replay_buffer.pkl")
     venv.save(str(tmp / "vecnormalize.pkl"))
+    outside = progress["config"].get("outside_env", False)  # its simulator does not pickle
     state = {"rng": _rng_state(model), "vecnorm_returns": np.array(venv.returns, copy=True),
-             "env_states": [get_env_state(e) for e in venv.venv.envs]}
+             "env_states": None if outside else [get_env_state(e) for e in venv.venv.envs]}
     with open(tmp / "state.pkl", "wb") as fh:
         pickle.dump(state, fh)
     (tmp / "progress.json").write_text(json.dumps(progress, indent=1) + "\n")
@@ -368,15 +407,20 @@ def restore_checkpoint(path: Path, config: dict[str, Any]) -> tuple[BaseAlgorith
     venv = VecNormalize.load(str(path / "vecnormalize.pkl"), inner)
     with open(path / "state.pkl", "rb") as fh:
         state = pickle.load(fh)
-    for env, st in zip(inner.envs, state["env_states"], strict=True):
-        set_env_state(env, st)
+    outside = state["env_states"] is None  # an outside env: its episode restarts
+    if not outside:
+        for env, st in zip(inner.envs, state["env_states"], strict=True):
+            set_env_state(env, st)
     venv.returns = np.array(state["vecnorm_returns"], copy=True)
     # force_reset=False keeps the saved mid-episode observation (SB3 resets by default)
     model = ALGORITHMS[config["algo"]].load(path / "model.zip", env=venv, device="cpu",
-                                            force_reset=False)
+                                            force_reset=outside)
     if isinstance(model, OffPolicyAlgorithm):
         model.load_replay_buffer(path / "replay_buffer.pkl")
-    inner._reset_seeds()  # load() re-seeded the VecEnv's next reset; it must not apply
+    if outside:  # the restarted episode: a reset seed of its own, not the run's first one
+        inner.seed(int(config["seed"]) + int(model.num_timesteps))
+    else:
+        inner._reset_seeds()  # load() re-seeded the VecEnv's next reset; it must not apply
     _set_rng_state(model, state["rng"])
     return quiet_logger(model), venv
 
@@ -389,7 +433,9 @@ def _make_venv(config: dict[str, Any]) -> VecNormalize:
                                  norm_reward=hp["norm_reward"], gamma=hp["gamma"],
                                  reward_shift=config["reward"] == "bounded-shift",
                                  goal_bonus=config["goal_bonus"],
-                                 time_feature_on=config["time_feature"])
+                                 time_feature_on=config["time_feature"],
+                                 make_env=_env_maker(config) if config.get("outside_env")
+                                 else None)
 
 
 def _normalized(x: Any) -> Any:
@@ -424,7 +470,9 @@ def train(env: str, scenario: str, algo: str, steps: int, seed: int, out: Path,
     """Train (or resume, or extend) a run to ``steps`` env steps; save it to ``out``.
 
     Args:
-        env: short name (:data:`ENV_SHORT_NAMES`) or registered env id.
+        env: short name (:data:`ENV_SHORT_NAMES`) or registered env id, or the name of a
+            benchmark's outside env (:func:`outside_env_names`; trained through
+            :func:`benchmarks.controllers.make_env`, with its own reward).
         scenario: the env's scenario.
         algo: a key of :data:`gp_agents.rl.ALGORITHMS` (``"sac"``, ``"ppo"``, ``"tqc"``).
         steps: total env steps (summed over sub-envs; rounded up to whole rollouts).
@@ -438,8 +486,10 @@ def train(env: str, scenario: str, algo: str, steps: int, seed: int, out: Path,
         stop_after: write a checkpoint and return once this many env steps are trained, before
             ``steps`` (an interruption on purpose; the run is not finalized).
         hyperparams: preset name in :data:`HYPERPARAMETERS` (default: ``algo``).
-        reward: ``"task"`` or ``"bounded-shift"`` (training reward; see :data:`REWARDS`).
-        goal_bonus: training-only bonus per second inside the goal tolerance (0: none).
+        reward: ``"task"`` or ``"bounded-shift"`` (training reward; see :data:`REWARDS`;
+            an outside env: ``"task"`` only, its own reward).
+        goal_bonus: training-only bonus per second inside the goal tolerance (0: none; an
+            outside env: 0 only).
         time_feature: append the time feature to the policy's input.
         fresh: discard ``out``'s checkpoints and start over.
         echo: where progress messages go.
@@ -448,8 +498,8 @@ def train(env: str, scenario: str, algo: str, steps: int, seed: int, out: Path,
         The agent (the final one, saved to ``out``, or the running one at ``stop_after``).
 
     Raises:
-        ValueError: bad arguments, or a checkpoint / saved run in ``out`` with another
-            configuration or past ``steps``.
+        ValueError: bad arguments (also a training reward wrapper for an outside env), or a
+            checkpoint / saved run in ``out`` with another configuration or past ``steps``.
     """
     torch.set_num_threads(1)
     env_id = ENV_SHORT_NAMES.get(env, env)
@@ -469,12 +519,20 @@ def train(env: str, scenario: str, algo: str, steps: int, seed: int, out: Path,
         raise ValueError("steps must be > 0 and the frequencies/episodes >= 0")
     if not isinstance(hp["learning_rate"], float | int):
         raise ValueError("chunked training needs a constant learning rate")
+    outside = _is_outside(env_id)
+    if outside and (reward != "task" or goal_bonus):
+        raise ValueError(f"env {env_id} is an outside simulator: its reward is its own (no "
+                         f"termination penalty to replace, no goal bonus); --reward "
+                         f"bounded-shift and --goal-bonus apply to gp_envs systems only, "
+                         f"train it with --reward task")
     config = _normalized({
         "env_id": env_id, "scenario": scenario, "algo": algo, "hp_name": hp_name,
         "hyperparameters": hp, "seed": seed, "reward": reward, "goal_bonus": float(goal_bonus),
         "time_feature": bool(time_feature), "eval_freq": eval_freq,
         "eval_episodes": eval_episodes, "checkpoint_freq": checkpoint_freq,
-        "eval_seeds": f"{EVAL_SEED0}..{EVAL_SEED0 + eval_episodes - 1}"})
+        "eval_seeds": f"{EVAL_SEED0}..{EVAL_SEED0 + eval_episodes - 1}",
+        **({"outside_env": True} if outside else {})})
+    make = _env_maker(config)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     ckpt_root = out / CHECKPOINTS
@@ -482,7 +540,7 @@ def train(env: str, scenario: str, algo: str, steps: int, seed: int, out: Path,
         shutil.rmtree(ckpt_root, ignore_errors=True)
         for f in ("model.zip", "vecnormalize.pkl", METADATA_FILE, CURVE_FILE):
             (out / f).unlink(missing_ok=True)
-    probe = gym.make(env_id, scenario=scenario)
+    probe = make()
 
     # a finished run with this configuration?
     meta_file = out / METADATA_FILE
@@ -525,11 +583,12 @@ def train(env: str, scenario: str, algo: str, steps: int, seed: int, out: Path,
     wrappers = training_wrappers_record(probe, reward == "bounded-shift", goal_bonus,
                                         time_feature)
     metadata = RLAgent.metadata_for(
-        probe, algo, seed=seed, hyperparameters=hp, hyperparameter_preset=hp_name,
+        probe, algo, outside_env=(env_id, scenario) if outside else None, seed=seed,
+        hyperparameters=hp, hyperparameter_preset=hp_name,
         training_steps=int(model.num_timesteps), training_wrappers=wrappers,
-        time_feature_max_steps=int(probe.spec.max_episode_steps) if time_feature else None,
+        time_feature_max_steps=episode_limit(probe) if time_feature else None,
         run_config=config)
-    eval_env = gym.make(env_id, scenario=scenario)
+    eval_env = make()
     eval_seeds = range(EVAL_SEED0, EVAL_SEED0 + eval_episodes)
     curve_path = out / CURVE_FILE
     unit = rollout_unit(model)
@@ -609,12 +668,14 @@ def main(argv: list[str] | None = None) -> None:
     """Command-line entry point (see the module docstring)."""
     parser = argparse.ArgumentParser(
         description=__doc__.split("\n\n")[0],
-        epilog=f"--env: every registered system; {ENTRY_POINT_HELP}. Then gp-bench --envs NAME "
+        epilog=f"--env: every registered system; {ENTRY_POINT_HELP}; or an outside env "
+               f"({', '.join(outside_env_names())}; its own reward). Then gp-bench --envs NAME "
                "--controllers nominal-mpc,ALGO runs the saved model (it looks in "
                f"./{USER_MODELS_DIR} before the shipped models).")
     parser.add_argument("--env", required=True,
                         help=f"a registered system's name {sorted(ENV_SHORT_NAMES)} or its env "
-                             "id (see below for your own system)")
+                             "id (see below for your own system), or an outside env "
+                             f"{outside_env_names()}")
     parser.add_argument("--scenario", default=None, help="env scenario (default: the env's own)")
     parser.add_argument("--algo", choices=sorted(ALGORITHMS), default="sac")
     parser.add_argument("--hyperparams", choices=sorted(HYPERPARAMETERS), default=None,
@@ -642,10 +703,24 @@ def main(argv: list[str] | None = None) -> None:
 
     env_id = ENV_SHORT_NAMES.get(args.env, args.env)
     short = {v: k for k, v in ENV_SHORT_NAMES.items()}.get(env_id)
-    if short is None:
+    if short is None and _is_outside(args.env):
+        from benchmarks.outside_envs import OUTSIDE_ENVS
+
+        short = args.env
+        scenario = args.scenario or OUTSIDE_ENVS[short].default_scenario
+        if scenario not in OUTSIDE_ENVS[short].scenarios:
+            parser.error(f"unknown scenario {scenario!r} of env {short}; valid scenarios: "
+                         f"{', '.join(OUTSIDE_ENVS[short].scenarios)}")
+        if args.reward != "task" or args.goal_bonus:
+            parser.error(f"env {short} is an outside simulator: its reward is its own; "
+                         f"--reward bounded-shift and --goal-bonus apply to gp_envs systems "
+                         f"only")
+    elif short is None:
         parser.error(f"unknown env {args.env!r}; registered systems: "
-                     f"{', '.join(ENV_SHORT_NAMES)} ({ENTRY_POINT_HELP})")
-    scenario = args.scenario or gym.make(env_id).unwrapped.scenario
+                     f"{', '.join(ENV_SHORT_NAMES)} ({ENTRY_POINT_HELP}); outside envs: "
+                     f"{', '.join(outside_env_names())}")
+    else:
+        scenario = args.scenario or gym.make(env_id).unwrapped.scenario
     out = args.out or USER_MODELS_DIR / short / args.algo
     log(f"pid {os.getpid()}: {shlex.join(sys.argv)}")
     train(short, scenario, args.algo, args.steps, args.seed, out, eval_freq=args.eval_freq,
