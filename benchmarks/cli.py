@@ -21,6 +21,9 @@ A run writes ``<out>/runs/<trial>.npz`` (one file per finished trial, written at
 ``./benchmark-results/<preset or 'custom'>`` under the current directory. Rerunning the same
 command skips finished trials, so an interrupted run resumes where it stopped.
 
+A custom grid whose controller cannot run on a requested env (no RL model for it, say) is
+recorded and exits with status 3, each reason on stderr.
+
 Misuse (unknown names, empty name lists, bad seeds or numbers, an unwritable ``--out``,
 ``--report-only`` without results, an unreachable Dask scheduler, no Dask worker within
 ``--worker-timeout``) prints one line ``gp-bench: error: ...`` on stderr and exits with status 2.
@@ -41,7 +44,7 @@ import tempfile
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import NoReturn
+from typing import Any, NoReturn
 
 from benchmarks import USER_MODELS_DIR
 from benchmarks.controllers import (
@@ -392,8 +395,25 @@ def _terminate(signum: int, frame: object) -> None:
     raise SystemExit(128 + signum)
 
 
+def _unavailable(out: Path, specs: Sequence[Any]) -> list[str]:
+    """One line per (controller, env, scenario) of ``specs`` whose trials were recorded as not
+    available (e.g. no RL model ships for that env), with the recorded reason."""
+    from benchmarks.runner import load_record, trial_path
+
+    reasons: dict[tuple[str, str, str], str] = {}
+    for spec in specs:
+        record = load_record(trial_path(out, spec))
+        key = (spec.controller, spec.env, spec.scenario)
+        if record is not None and record.get("status") == "unavailable" and key not in reasons:
+            reasons[key] = (f"{spec.controller} on {spec.env} ({spec.scenario}): "
+                            f"{record.get('message', '')}")
+    return list(reasons.values())
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the CLI; returns the exit status (0 ok, 1 if some trial failed).
+    """Run the CLI; returns the exit status (0 ok, 1 if some trial failed, 3 if a controller
+    of a custom grid (``--controllers``) cannot run on a requested env: the reasons on
+    stderr).
 
     Usage errors, and errors that stop a run before it could do its work (an unwritable
     ``--out``, an unreachable Dask scheduler, no Dask worker within ``--worker-timeout``), print
@@ -442,6 +462,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         if failed:
             print(f"{failed} trial(s) failed; see {out / 'metrics.csv'}", file=sys.stderr)
             status = 1
+        if preset.name == "custom":  # a requested controller that cannot run is an error
+            reasons = _unavailable(out, preset.specs)
+            for reason in reasons:
+                print(f"gp-bench: not available: {reason}", file=sys.stderr)
+            if reasons and not status:
+                status = 3
     run_info["wall_s"] = time.perf_counter() - start
     command = _command(argv)
     last = out / RUNS_DIR / "last_run.json"  # the report names the command that ran trials

@@ -166,3 +166,15 @@ def test_cells_filter_keeps_only_the_named_cells_and_rejects_unknown_ones() -> N
     assert all(s.env == "cartpole" for s in preset.specs)
     with pytest.raises(UnknownNameError, match="valid cells: default"):
         resolve(build_parser().parse_args(["--preset", "robustness", "--cells", "r9"]))
+
+
+def test_a_requested_controller_that_cannot_run_exits_3_with_the_reason(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """No SAC model ships for the quadrotor: the custom grid says so and exits non-zero."""
+    (tmp_path / "models").mkdir()
+    status = main(["--controllers", "sac", "--envs", "quadrotor", "--seeds", "0",
+                   "--max-steps", "2", "--workers", "1", "--no-progress",
+                   "--models", str(tmp_path / "models"), "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert status == 3
+    assert "not available: sac on quadrotor (online): no SAC model" in err

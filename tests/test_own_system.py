@@ -102,11 +102,15 @@ def test_own_system_trains_and_runs_through_the_command_lines(tmp_path: Path) ->
     assert record["metrics"]["recipe_model_dir"] == str(model.resolve())
     assert record["spec"]["models"] == str((work / "benchmarks" / "models").resolve())
 
-    # without either, the run says where it looked and how to train one (status 0: recorded)
+    # without either, the run says where it looked and how to train one (recorded, and the
+    # command exits 3 with the reason: a requested controller could not run)
     bare = tmp_path / "bare"
     bare.mkdir()
-    _run(["-m", "benchmarks", "--envs", "puck", "--controllers", "sac", "--seeds", "0",
-          "--max-steps", "3", "--workers", "0", "--no-progress"], bare, env)
+    res = subprocess.run([sys.executable, "-m", "benchmarks", "--envs", "puck", "--controllers",
+                          "sac", "--seeds", "0", "--max-steps", "3", "--workers", "0",
+                          "--no-progress"], cwd=bare, env=env, capture_output=True, text=True,
+                         timeout=300)
+    assert res.returncode == 3 and "not available: sac on puck" in res.stderr, res.stderr
     record = _records(bare / "benchmark-results" / "custom")["sac"]
     assert record["status"] == "unavailable"
     assert "python -m benchmarks.rl.train --env puck --algo sac" in record["message"]
