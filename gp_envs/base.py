@@ -38,6 +38,49 @@ the noise has its own stream, so the initial states and parameter draws of a see
 with and without noise."""
 
 
+def checked_action(action: Any, shape: tuple[int, ...]) -> np.ndarray:
+    """``action`` as a float array of exactly ``shape`` (an env step's check).
+
+    Raises:
+        ValueError: non-numeric, another shape (not reshaped), or not finite.
+    """
+    try:
+        a = np.asarray(action, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"action must be an array of numbers of shape {shape}, "
+                         f"got {action!r}") from None
+    if a.shape != shape:
+        raise ValueError(f"action must have shape {shape}, got {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"action must be finite, got {a}")
+    return a
+
+
+def task_info(task: Task, dt: float, steps: int, held: int, obs: np.ndarray, *,
+              violation: str | None, reason: str | None, clipped: bool) -> dict[str, Any]:
+    """The ``info`` keys of the task after ``steps`` periods of ``dt`` s, the last ``held`` of
+    them ending at the goal: ``success`` once ``held`` covers the task's hold time (at least one
+    period), and the observed state's ``at_goal`` and distance (every env of this package and
+    :func:`gp_envs.wrap` report these)."""
+    success = held >= max(round(task.hold_time / dt), 1)
+    since = round((steps - held + 1) * dt, 9) if held else None
+    return {
+        "success": bool(success),
+        "is_success": bool(success),  # the key stable-baselines3's callbacks read
+        "at_goal": bool(task.at_goal(obs)),
+        # time (s) of the first state of the current unbroken stretch at the goal (None: not
+        # at the goal now); with "success" at an episode's end: when the held final stretch
+        # began
+        "at_goal_since": since,
+        "distance_to_goal": task.goal_distance(obs),
+        "constraint_violation": violation is not None,
+        "violation": violation,
+        "termination_reason": reason,
+        "action_clipped": clipped,
+        "time": steps * dt,
+    }
+
+
 class Plant(Protocol):
     """The truth that steps an env's state: the package's ODE with hidden parameter values (a
     :class:`~gp_envs.model.ControlModel`, the default), or an outside simulator
@@ -472,16 +515,7 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
         The action is clipped to the action space (``info["action_clipped"]`` says so); a NaN,
         infinite, non-numeric or wrong-shaped action raises ``ValueError``.
         """
-        try:
-            a = np.asarray(action, dtype=float)
-        except (TypeError, ValueError):
-            raise ValueError(f"action must be an array of numbers of shape "
-                             f"{self.action_space.shape}, got {action!r}") from None
-        if a.shape != self.action_space.shape:
-            raise ValueError(f"action must have shape {self.action_space.shape}, "
-                             f"got {a.shape}")
-        if not np.all(np.isfinite(a)):
-            raise ValueError(f"action must be finite, got {a}")
+        a = checked_action(action, self.action_space.shape)
         u = np.clip(a, self.action_space.low, self.action_space.high)
         clipped = bool(np.any(u != a))
 
@@ -522,25 +556,8 @@ class GPEnv(gym.Env[np.ndarray, np.ndarray]):
 
     def _info(self, obs: np.ndarray, violation: str | None, reason: str | None, clipped: bool
               ) -> dict[str, Any]:
-        task = self.nominal_model.task
-        hold_steps = round(task.hold_time / self.DT)
-        success = self._held >= max(hold_steps, 1)
-        since = round((self._steps - self._held + 1) * self.DT, 9) if self._held else None
-        return {
-            "success": bool(success),
-            "is_success": bool(success),  # the key stable-baselines3's callbacks read
-            "at_goal": bool(task.at_goal(obs)),
-            # time (s) of the first state of the current unbroken stretch at the goal (None:
-            # not at the goal now); with "success" at an episode's end: when the held final
-            # stretch began
-            "at_goal_since": since,
-            "distance_to_goal": task.goal_distance(obs),
-            "constraint_violation": violation is not None,
-            "violation": violation,
-            "termination_reason": reason,
-            "action_clipped": clipped,
-            "time": self._steps * self.DT,
-        }
+        return task_info(self.nominal_model.task, self.DT, self._steps, self._held, obs,
+                         violation=violation, reason=reason, clipped=clipped)
 
     # ----------------------------------------------------------------- pickling
     def __getstate__(self) -> dict[str, Any]:

@@ -28,6 +28,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from gp_envs.base import GPEnv, checked_action, task_info
 from gp_envs.model import ControlModel
 
 __all__ = ["ModelWrapper", "nominal_model", "wrap"]
@@ -186,8 +187,6 @@ class ModelWrapper(gym.Wrapper[np.ndarray, np.ndarray, Any, Any],
             ValueError: a ``gp_envs`` env's own option (``keep_system``, ``state``) for an env
                 that is not one (it would ignore it or mean something else).
         """
-        from gp_envs.base import GPEnv
-
         own = sorted(set(options or {}) & GP_ENV_OPTIONS)
         if own and not isinstance(self.env.unwrapped, GPEnv):
             raise ValueError(f"reset option(s) {own} are gp_envs envs' own; "
@@ -207,15 +206,7 @@ class ModelWrapper(gym.Wrapper[np.ndarray, np.ndarray, Any, Any],
         Raises:
             ValueError: a control that is not (m,) finite numbers.
         """
-        try:
-            u = np.asarray(action, dtype=float)
-        except (TypeError, ValueError):
-            raise ValueError(f"action must be an array of numbers of shape "
-                             f"{self.action_space.shape}, got {action!r}") from None
-        if u.shape != self.action_space.shape:
-            raise ValueError(f"action must have shape {self.action_space.shape}, got {u.shape}")
-        if not np.all(np.isfinite(u)):
-            raise ValueError(f"action must be finite, got {u}")
+        u = checked_action(action, self.action_space.shape)
         model = self.nominal_model
         clipped_u = np.clip(u, model.u_lb, model.u_ub)
         a = self._env_action(clipped_u).astype(self.env.action_space.dtype)
@@ -234,15 +225,9 @@ class ModelWrapper(gym.Wrapper[np.ndarray, np.ndarray, Any, Any],
                    clipped: bool) -> dict[str, Any]:
         """``info`` with the task's keys (the same as a :class:`~gp_envs.base.GPEnv`'s)."""
         model = self.nominal_model
-        task, dt = model.task, model.dt
-        success = self._held >= max(round(task.hold_time / dt), 1)
-        since = round((self._steps - self._held + 1) * dt, 9) if self._held else None
-        info.update(
-            success=bool(success), is_success=bool(success), at_goal=bool(task.at_goal(x)),
-            at_goal_since=since, distance_to_goal=task.goal_distance(x),
-            constraint_violation=False, violation=None,
-            termination_reason="terminated by the env" if terminated else None,
-            action_clipped=clipped, time=round(self._steps * dt, 9))
+        info.update(task_info(model.task, model.dt, self._steps, self._held, x, violation=None,
+                              reason="terminated by the env" if terminated else None,
+                              clipped=clipped))
         return info
 
     def oracle_model(self) -> ControlModel:
