@@ -2,12 +2,33 @@
 
 from __future__ import annotations
 
+import enum
 from dataclasses import dataclass, fields
 
 import numpy as np
 
 __all__ = ["DEGRADED_FRACTION", "MIN_DEGRADED_REPLANS", "ControllerDegradedWarning", "StepRecord",
-           "records_to_arrays"]
+           "StepStatus", "records_to_arrays"]
+
+
+class StepStatus(enum.StrEnum):
+    """What one ``act`` call did: the only status vocabulary of the controller, its planners and
+    the benchmark's report (compare with ``==``; never parse ``StepRecord.solver_status``).
+
+    A string enum, so that it is stored in arrays and CSV files as its value.
+    """
+
+    REUSE = "reuse"
+    """No replan: the action comes from the current plan."""
+    SOLVED = "solved"
+    """A converged solve (the solver's own status is in ``StepRecord.solver_status``)."""
+    RTI = "RTI"
+    """A real-time iteration step, accepted as it was."""
+    RTI_RECOVERED = "RTI recovered"
+    """A real-time iteration step whose constraint violation was too large, made acceptable by
+    further SQP iterations within the recovery budget."""
+    RTI_REJECTED = "RTI rejected"
+    """A real-time iteration step rejected and replaced by a converged solve."""
 
 
 class ControllerDegradedWarning(UserWarning):
