@@ -35,3 +35,60 @@ def test_no_engine_or_library_module_imports_a_study():
 def test_no_library_module_names_a_results_file():
     code = _sources("gp_envs", "gp_agents")
     assert [p for p, text in code.items() if "benchmarks/results" in text] == []
+
+
+RESULTS = REPO / "benchmarks" / "results"
+
+
+def _results_entries() -> set[str]:
+    """The committed top-level entries of ``benchmarks/results`` (folders and files)."""
+    import subprocess
+
+    try:
+        listed = subprocess.run(["git", "ls-files", "--", "benchmarks/results"], cwd=REPO,
+                                capture_output=True, text=True, check=True).stdout
+    except (OSError, subprocess.CalledProcessError):
+        import pytest
+
+        pytest.skip("not a git checkout")
+    return {Path(line).parts[2] for line in listed.splitlines()
+            if len(Path(line).parts) > 2 and (REPO / line).exists()}
+
+
+def _citing_pages() -> dict[str, str]:
+    """The README and every hand-written documentation page (the results pages under
+    ``docs/results/`` are generated, see :func:`_rendered_folders`)."""
+    docs = REPO / "docs"
+    pages = [REPO / "README.md", *(p for ext in ("md", "rst") for p in docs.rglob(f"*.{ext}")
+                                   if p.relative_to(docs).parts[0] not in ("results", "_build"))]
+    return {str(p.relative_to(REPO)): p.read_text() for p in pages}
+
+
+def _rendered_folders(tmp_path: Path) -> set[str]:
+    """The results folders the documentation's results pages are generated from."""
+    import sys
+
+    sys.path.insert(0, str(REPO / "docs"))
+    try:
+        from results_pages import write_results_pages
+    finally:
+        sys.path.remove(str(REPO / "docs"))
+    return {p.stem for p in write_results_pages(RESULTS, tmp_path) if p.name != "index.md"}
+
+
+def _uncited(entries: set[str], pages: dict[str, str], rendered: set[str]) -> list[str]:
+    def cited(name: str) -> bool:
+        # `benchmarks/results/rti` is not a citation of `rti-parametric` nor the reverse
+        pattern = re.compile(r"benchmarks/results/" + re.escape(name) + r"(?![\w-]|\.\w)")
+        return any(pattern.search(text) for text in pages.values())
+    return sorted(name for name in entries if name not in rendered and not cited(name))
+
+
+def test_every_results_entry_is_cited_by_the_readme_or_a_docs_page(tmp_path: Path):
+    entries, pages = _results_entries(), _citing_pages()
+    rendered = _rendered_folders(tmp_path)
+    assert {"recommended", "quick"} <= rendered <= entries
+    assert _uncited(entries, pages, rendered) == []
+    # the check is a real one: an entry nothing names is reported, a longer name is no citation
+    assert _uncited({"recommended", "no-such-run", "recommended-x"}, pages, set()) == [
+        "no-such-run", "recommended-x"]

@@ -20,7 +20,10 @@ from a report's ``metrics.csv`` (``--metrics``, e.g. the ``rti`` preset's evalua
 Outcomes only: the machine's load changes no number here. Run (one core)::
 
     OMP_NUM_THREADS=1 python -m benchmarks.studies.rti_zero_order [--seeds 100-115] \\
-        [--metrics benchmarks/results/archive/rti-before-recovery/metrics.csv] [--out FILE.md]
+        [--metrics rti-before-recovery.csv] [--out FILE.md]
+
+The ``rti`` preset's run before the RTI recovery, which the decision record reads, is in the
+git history: ``git show 7d41892:benchmarks/results/archive/rti-before-recovery/metrics.csv``.
 """
 
 from __future__ import annotations
