@@ -92,3 +92,24 @@ def test_every_results_entry_is_cited_by_the_readme_or_a_docs_page(tmp_path: Pat
     # the check is a real one: an entry nothing names is reported, a longer name is no citation
     assert _uncited({"recommended", "no-such-run", "recommended-x"}, pages, set()) == [
         "no-such-run", "recommended-x"]
+
+
+def test_make_bench_writes_outside_the_committed_results_by_default():
+    """``make bench`` on a fresh clone leaves ``git status`` clean: its default ``OUT`` is a
+    git-ignored folder; ``make bench OUT=benchmarks/results/quick`` updates the committed run."""
+    import subprocess
+
+    makefile = (REPO / "Makefile").read_text()
+    default = re.search(r"^OUT \?= (\S+)$", makefile, re.M)
+    assert default, "the Makefile sets a default OUT"
+    recipe = re.search(r"^bench:.*\n((?:\t.*\n)+)", makefile, re.M)
+    assert recipe and "--out $(OUT)" in recipe.group(1)
+    out = default.group(1)
+    assert not out.startswith("benchmarks/results")
+    try:
+        ignored = subprocess.run(["git", "check-ignore", "-q", f"{out}/report.md"], cwd=REPO)
+    except OSError:
+        import pytest
+
+        pytest.skip("git is not installed")
+    assert ignored.returncode == 0, f"{out} is not git-ignored"
