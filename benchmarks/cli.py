@@ -53,6 +53,7 @@ from benchmarks.controllers import (
     N_INITIAL_POINTS,
     UnknownNameError,
     check_name,
+    rl_models,
     user_models_dir,
 )
 from benchmarks.presets import PRESETS, Preset, custom_experiment, get_preset
@@ -361,11 +362,26 @@ def _list_presets() -> str:
     return "\n".join(lines)
 
 
-def _list_controllers(aliases: bool = False) -> str:
+def _list_controllers(aliases: bool = False, models: Path | None = None) -> str:
+    """The ``--list-controllers`` text; each RL controller with the envs it has a model for
+    (the shipped ones, and the user's: ``models`` or ``./benchmarks/models``).
+
+    Raises:
+        FileNotFoundError: ``models`` is given but is not a directory.
+    """
     main = [c for c in CONTROLLERS.values() if c.main]
+    found = rl_models(models)
+    user = user_models_dir(models)
+
+    def envs(algo: str) -> str:
+        names = [env + ("" if user is None or not path.is_relative_to(user) else " (yours)")
+                 for env, path in found[algo].items()]
+        return "; models for " + (", ".join(names) if names else "no env")
+
     lines = ["controllers (MPC recipes: <recipe>-mpc, with @rti or @rti-split for the "
              "real-time iteration; make_mpc(env, recipe) in Python):"]
-    lines += [f"  {c.name:20s} {c.description}" for c in main]
+    lines += [f"  {c.name:20s} {c.description}" + (envs(c.name) if c.family == "rl" else "")
+              for c in main]
     schemes = [c.name for c in CONTROLLERS.values() if c.recipe and not c.main
                and c.alias_of is None]
     lines.append("  schemes: " + ", ".join(schemes))
@@ -429,7 +445,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(_list_presets())
         return 0
     if args.list_controllers:
-        print(_list_controllers(args.all))
+        try:
+            print(_list_controllers(args.all, args.models))
+        except FileNotFoundError as err:
+            parser.fail(str(err))
         return 0
     try:
         preset, out = resolve(args)

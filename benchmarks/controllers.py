@@ -345,9 +345,33 @@ class ControllerUnavailableError(RuntimeError):
 
 
 def check_name(kind: str, name: str, valid: Any) -> None:
-    """Raise :class:`UnknownNameError` listing ``valid`` when ``name`` is not among them."""
-    if name not in valid:
-        raise UnknownNameError(f"unknown {kind} {name!r}; valid {kind}s: {', '.join(valid)}")
+    """Raise :class:`UnknownNameError` listing ``valid`` when ``name`` is not among them (for a
+    controller ``<known MPC>@<scheme>`` with a scheme that is not one, the schemes instead)."""
+    if name in valid:
+        return
+    if kind == "controller":
+        _check_scheme_suffix(name)
+    raise UnknownNameError(f"unknown {kind} {name!r}; valid {kind}s: {', '.join(valid)}")
+
+
+def _check_scheme_suffix(name: str) -> None:
+    """Raise :class:`UnknownNameError` naming the schemes when ``name`` is a known MPC's name
+    with an ``@<scheme>`` suffix that composes no controller (``robust-mpc@fast``)."""
+    base, at, scheme = name.partition("@")
+    recipe = CONTROLLERS.get(base)
+    if not at or recipe is None or recipe.recipe is None:
+        return
+    suffixes = [s for s in SCHEME_NAMES if s != "converged"]
+    composed = controller_name(recipe.recipe, scheme) if scheme in SCHEME_NAMES else None
+    if recipe.alias_of is not None and composed is not None:
+        raise UnknownNameError(f"unknown controller {name!r}: {base!r} is an older name of "
+                               f"{recipe.alias_of!r}; use {composed!r}")
+    if scheme == "converged":
+        raise UnknownNameError(f"unknown controller {name!r}: the converged scheme has no "
+                               f"suffix; use {controller_name(recipe.recipe)!r}")
+    raise UnknownNameError(f"unknown scheme {scheme!r} of controller {base!r} (schemes: "
+                           f"{', '.join(suffixes)}, as {base}@{suffixes[0]}; converged: no "
+                           "suffix)")
 
 
 def check_env_scenario(env: str, scenario: str) -> None:
@@ -415,6 +439,19 @@ def rl_model_dir(env: str, algo: str, models: str | Path | None = None) -> Path:
         if (path / "metadata.json").is_file() and (path / "model.zip").is_file():
             return path
     return MODELS_DIR / env / algo
+
+
+def rl_models(models: str | Path | None = None) -> dict[str, dict[str, Path]]:
+    """The saved RL policies the RL recipes find, ``{algo: {env: model directory}}`` for each of
+    :data:`RL_ALGORITHMS` (the first of :func:`rl_model_dirs` that has one wins, as in
+    :func:`rl_model_dir`): on which envs each RL controller can run."""
+    found: dict[str, dict[str, Path]] = {algo: {} for algo in RL_ALGORITHMS}
+    for root in reversed(rl_model_dirs(models)):  # the user's replace the shipped ones
+        for path in root.glob("*/*/model.zip"):
+            env, algo = path.parent.parent.name, path.parent.name
+            if algo in found and (path.parent / "metadata.json").is_file():
+                found[algo][env] = path.parent
+    return {algo: dict(sorted(envs.items())) for algo, envs in found.items()}
 
 
 def make_env(env: str, scenario: str, **options: Any) -> gym.Env:

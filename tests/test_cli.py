@@ -178,3 +178,41 @@ def test_a_requested_controller_that_cannot_run_exits_3_with_the_reason(
     err = capsys.readouterr().err
     assert status == 3
     assert "not available: sac on quadrotor (online): no SAC model" in err
+
+
+def test_list_controllers_names_the_envs_each_rl_controller_has_a_model_for(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from benchmarks.controllers import MODELS_DIR
+
+    def rl_lines() -> dict[str, str]:
+        out = capsys.readouterr().out
+        return {line.split()[0]: line for line in out.splitlines()
+                if line.split() and line.split()[0] in ("sac", "ppo", "tqc")}
+
+    assert main(["--list-controllers"]) == 0
+    lines = rl_lines()
+    for algo, line in lines.items():
+        shipped = sorted(p.parent.parent.name for p in MODELS_DIR.glob(f"*/{algo}/model.zip"))
+        assert shipped and line.endswith("; models for " + ", ".join(shipped))
+    assert "quadrotor" not in lines["sac"]
+    # a user's model (--models DIR, <env>/<algo>/ as benchmarks.rl.train saves) is listed too
+    (tmp_path / "quadrotor" / "sac").mkdir(parents=True)
+    for name in ("model.zip", "metadata.json"):
+        (tmp_path / "quadrotor" / "sac" / name).write_text("")
+    assert main(["--list-controllers", "--models", str(tmp_path)]) == 0
+    assert "quadrotor (yours)" in rl_lines()["sac"]
+
+
+@pytest.mark.parametrize(("name", "message"), [
+    ("robust-mpc@fast", "unknown scheme 'fast' of controller 'robust-mpc' (schemes: rti, "
+                        "rti-split, as robust-mpc@rti; converged: no suffix)"),
+    ("robust-mpc@converged", "the converged scheme has no suffix; use 'robust-mpc'"),
+    ("ssgp-mpc@rti", "'ssgp-mpc' is an older name of 'paper-mpc'; use 'paper-mpc@rti'"),
+])
+def test_a_known_mpc_with_an_unknown_scheme_names_the_schemes(
+        name: str, message: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    line = _usage_error(["--controllers", name, "--envs", "cartpole", "--no-progress",
+                         "--out", str(tmp_path / "out")], capsys)
+    assert message in line
+    assert "valid controllers" not in line  # not the whole registry
+    assert not (tmp_path / "out").exists()
