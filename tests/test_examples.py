@@ -44,6 +44,9 @@ def test_example_runs(script: Path, tmp_path: Path):
     result = _run([str(script)], tmp_path)
     assert result.returncode == 0, result.stderr[-3000:]
     assert result.stdout.strip(), "an example prints what it did"
+    if script.name == "dask_sweep.py":  # its report outlives the run, in the current directory
+        report = tmp_path.resolve() / "benchmark-results" / "dask-sweep-smoke" / "report.md"
+        assert report.is_file() and str(report.parent) in result.stdout
 
 
 @pytest.mark.parametrize(("name", "code"), _blocks(), ids=[name for name, _ in _blocks()])
