@@ -268,13 +268,13 @@ def test_split_latency_is_act_minus_preparation_and_its_accepted_median_skips_re
 def test_a_tiny_real_run_draws_the_control_period_units_and_the_dubins_paths(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     figures: dict[str, Any] = {}
-    save = report._save
+    save = report.figures._save
 
     def keep(fig: Any, out_dir: Path, name: str) -> str:
         figures[name] = fig
         return save(fig, out_dir, name)
 
-    monkeypatch.setattr(report, "_save", keep)
+    monkeypatch.setattr(report.figures, "_save", keep)
     assert main(["--controllers", "nominal-mpc,oracle-mpc", "--envs", "cartpole,dubins",
                  "--seeds", "0", "--max-steps", "3", "--workers", "0", "--no-progress",
                  "--out", str(tmp_path)]) == 0
