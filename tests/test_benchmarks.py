@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import csv
+import importlib
 import shutil
 import subprocess
 from pathlib import Path
@@ -26,6 +26,8 @@ from benchmarks.trial import TrialSpec, execute
 TINY = ["--controllers", "nominal-mpc", "--envs", "cartpole", "--scenarios", "online",
         "--seeds", "0", "--max-steps", "4", "--workers", "0", "--no-progress"]
 TINY_SPEC = TrialSpec("episode", "cartpole", "online", "nominal-mpc", 0, max_steps=4)
+STUDIES = sorted(p.stem for p in (Path(__file__).resolve().parents[1] / "benchmarks" / "studies")
+                 .glob("*.py") if p.stem != "__init__")
 TIMING = ("act_median_ms", "act_p95_ms", "act_max_ms", "build_s", "episode_s")
 
 
@@ -266,93 +268,6 @@ def test_interleaved_episodes_are_the_same_trials_seed_by_seed() -> None:
         assert seeds == sorted(seeds), (env, scenario)
 
 
-def test_the_residual_trace_records_what_the_nominal_model_missed() -> None:
-    """``benchmarks.studies.residual_trace``: the step-0 row is the first transition of the
-    benchmark's
-    own episode (a separate build of it: same action, the residual model's target of that
-    transition) with the *pretrained* learner's prediction (taken before it learns the
-    sample); a recipe without a learner, an unknown name or a bad cell is a usage error."""
-    from benchmarks.studies import residual_trace as rt
-    from benchmarks.trial import build_episode
-
-    spec = TrialSpec("episode", "pendulum", "damped", "ssgp-mpc", 0)
-    rows, outputs, inputs = rt.trace(spec, steps=3)
-    env, built, _ = build_episode(spec)
-    action = built.agent.act(built.obs)
-    next_obs = env.step(action)[0]
-    Z, Y = built.agent.residual.targets(built.obs[None], np.asarray(action, float)[None],
-                                        next_obs[None])
-    np.testing.assert_allclose(rows[0]["action"], action)
-    np.testing.assert_allclose(rows[0]["target"], Y[0])
-    np.testing.assert_allclose(rows[0]["predicted"], built.agent.learner.predict(Z)[0])
-    assert [r["step"] for r in rows] == [0, 1, 2] and len(outputs) == len(rows[0]["target"])
-    assert all(np.all(np.isfinite(r["predicted"])) and r["distance"] >= 0 for r in rows)
-    assert all(r["farthest"] in inputs for r in rows)
-    text = rt.format_trace(rows, outputs)
-    assert text.count("\n| d(") == len(outputs)  # one summary row per output
-    with pytest.raises(ValueError, match="learns nothing"):
-        rt.trace(TrialSpec("episode", "pendulum", "damped", "nominal-mpc", 0), steps=1)
-    for argv in (["--controller", "nominal-mpc", "--env", "pendulum"], ["--env", "nope"],
-                 ["--env", "pendulum", "--data", "other"], ["--env", "pendulum", "--steps", "0"]):
-        with pytest.raises(SystemExit):
-            rt.main(argv)
-
-
-def test_the_zero_order_gain_ratio_and_its_tables(tmp_path: Path) -> None:
-    """``benchmarks.studies.rti_zero_order``: rho is the documented truth's gain (b = 0.3, the env
-    docstring) over the reset's nominal draw; the band table counts what the rows say; a
-    metrics file without the recipes' Dubins episodes, or no input at all, is a usage error."""
-    from benchmarks.studies import rti_zero_order as zo
-
-    env = make_env("dubins", "paper")
-    for seed in (3, 26):
-        env.reset(seed=seed)
-        nominal = env.unwrapped.nominal_model.params
-        q = zo.gain_ratio(seed)
-        assert q["b1_true"] == q["b2_true"] == pytest.approx(0.3)
-        assert q["rho"] == pytest.approx(max(0.7 / (1 - nominal["b1"]),
-                                             0.7 / (1 - nominal["b2"])))
-    assert zo.gain_ratio(3)["rho"] >= zo.STABLE_RATIO > zo.gain_ratio(26)["rho"]
-    rows = [dict(source="s", recipe=r, seed=seed, success=ok, cost=1.0, contacts=c)
-            for r, seed, ok, c in (("ssgp-mpc-rti-zero-order", 3, False, 2),
-                                   ("ssgp-mpc-rti-zero-order", 26, True, 0),
-                                   ("ssgp-mpc-rti", 3, True, 0), ("ssgp-mpc-rti", 26, True, 0))]
-    text = zo.tables(rows)
-    assert "| s | < 2 | 1 | 1/1 / 0 | 1/1 / 0 |" in text
-    assert "| s | >= 2 | 1 | 0/1 / 1 | 1/1 / 0 |" in text
-    empty = tmp_path / "metrics.csv"
-    empty.write_text("env,controller,seed,success,cost,violations,status\n"
-                     "cartpole,ssgp-mpc-rti,0,True,1.0,0,ok\n")
-    with pytest.raises(ValueError, match="no Dubins episodes"):
-        zo.metrics_rows(empty)
-    for argv in (["--seeds", "none"], ["--seeds", "none", "--metrics", str(empty)]):
-        with pytest.raises(SystemExit):
-            zo.main(argv)
-
-
-def test_the_levenberg_marquardt_sweep_counts_what_its_episodes_did() -> None:
-    """``benchmarks.studies.rti_levenberg_marquardt``: one row per episode, the RTI steps it
-    counts are the planner's (rejected ones among them), a converged reference runs once per
-    seed with none, the table has a row per recipe and ``mu``; a negative ``mu``, an unknown
-    recipe or an RTI or non-MPC reference is a usage error."""
-    from benchmarks.studies import rti_levenberg_marquardt as lm
-
-    rows = lm.run("dubins", [0.0, 0.01], [0], ["nominal-mpc-rti"], progress=False,
-                  references=["nominal-mpc"])
-    assert [(r["recipe"], r["mu"], r["seed"]) for r in rows] == [
-        ("nominal-mpc", None, 0), ("nominal-mpc-rti", 0.0, 0), ("nominal-mpc-rti", 0.01, 0)]
-    assert rows[0]["rti_steps"] == rows[0]["rejected"] == 0
-    assert all(0 <= r["rejected"] <= r["rti_steps"] and r["rti_steps"] > 100 for r in rows[1:])
-    text = lm.table(rows)
-    assert "| nominal-mpc-rti | 0 |" in text and "| nominal-mpc-rti | 0.01 |" in text
-    assert "| nominal-mpc | - |" in text
-    for argv in (["--mu", "-0.1"], ["--mu", "x"], ["--recipes", "nominal-mpc"],
-                 ["--scenario", "online"], ["--reference", "nominal-mpc-rti"],
-                 ["--reference", "sac"]):
-        with pytest.raises(SystemExit):
-            lm.main(argv)
-
-
 def test_the_rti_preset_runs_every_learned_term_once_per_system() -> None:
     """``ssgp-mpc-rti`` is the system's registered learned term; the preset adds the other
     linearized term explicitly (one call and split), so each term runs once per system with
@@ -378,112 +293,25 @@ def test_the_rti_preset_runs_every_learned_term_once_per_system() -> None:
     assert "ssgp-mpc-rti-linearized-split" in quad and "ssgp-mpc-rti-pattern" not in quad
 
 
-def test_the_learned_term_comparison_measures_split_latency_against_the_nominal() -> None:
-    """``benchmarks.studies.rti_learned_term``: latency is act minus preparation over the replanning
-    steps after the first; the table's ratio is per seed against the reference recipe; a
-    one-call RTI (no preparation) or an unknown system is refused."""
-    from benchmarks.studies import rti_learned_term as lt
+def test_build_episode_builds_the_episode_execute_runs() -> None:
+    """``build_episode`` (with which a study replays a benchmark episode) gives the env, the
+    pretrained controller and the first observation of the trial ``execute`` runs: the same
+    first observation and action."""
+    from benchmarks.trial import build_episode
 
-    diag = {"replanned": np.array([1, 0, 1, 1, 1]), "act_time": np.array([9.0, 1, 3, 4, 5]),
-            "preparation_time": np.array([1.0, 0, 1, 1, 1])}
-    assert lt.episode_latency(diag) == 3.0  # median of 2, 3, 4: the first replan left out
-    with pytest.raises(ValueError, match="not a split RTI"):
-        lt.episode_latency({"replanned": diag["replanned"], "act_time": diag["act_time"]})
-    with pytest.raises(ValueError, match="fewer than two"):
-        lt.episode_latency({**diag, "replanned": np.array([1, 0, 0, 0, 0])})
-    rows = [dict(system="s", scenario="c", recipe=r, seed=k, success=True, cost=1.0,
-                 latency=lat) for r, k, lat in (("ref", 0, 1.0), ("ref", 1, 2.0),
-                                                ("x", 0, 1.5), ("x", 1, 2.0),
-                                                (lt.RECIPES[1], 0, 1.5), (lt.RECIPES[1], 1, 2.2))]
-    text = lt.table(rows, reference="ref")
-    assert "| s | `c` | x | 2/2 | 1.00 | 1750.00 | 1.25x [1.00, 1.50] | 1/2 |" in text
-    assert f"| {lt.RECIPES[1]} | 2/2 | 1.00 | 1850.00 | 1.30x [1.10, 1.50] | - |" in text
-    assert lt.recipes("cartpole")[0] == "oracle-mpc-rti-split"  # its nominal RTI never steps
-    assert lt.recipes("dubins") == lt.RECIPES
-    per_system = [{**r, "system": "cartpole",
-                   "recipe": "oracle-mpc-rti-split" if r["recipe"] == "ref" else r["recipe"]}
-                  for r in rows]
-    assert "| cartpole | `c` | x | 2/2 | 1.00 | 1750.00 | 1.25x [1.00, 1.50] | 1/2 |" in lt.table(
-        per_system)
-    rows = lt.run("pendulum", "damped", [0], recipes=lt.RECIPES[:2], progress=False)
-    assert [r["recipe"] for r in rows] == list(lt.RECIPES[:2])
-    assert all(r["latency"] > 0 and np.isfinite(r["cost"]) for r in rows)
-    with pytest.raises(SystemExit):
-        lt.main(["--systems", "nope"])
+    spec = TrialSpec("episode", "pendulum", "damped", "ssgp-mpc", 0, max_steps=1)
+    record = execute(spec)
+    assert record["status"] == "ok", record["message"]
+    env, built, _ = build_episode(spec)
+    np.testing.assert_allclose(built.obs, record["arrays"]["obs"][0])
+    np.testing.assert_allclose(built.agent.act(built.obs), record["arrays"]["action"][0])
+    env.close()
 
 
-@pytest.mark.parametrize("linear", [False, True, (1,)], ids=["none", "all", "column 1"])
-def test_residual_decomposition_adds_up_to_the_prediction(linear: Any) -> None:
-    """``residual_trace.decompose``: target mean + SE part + linear parts = ``predict``, and a
-    column without a linear feature has no linear part."""
-    from benchmarks.studies.residual_trace import decompose
-    from gp_agents import IncrementalSSGP
-
-    rng = np.random.default_rng(0)
-    Z = rng.uniform(-1, 1, (80, 3))
-    Y = np.c_[np.sin(2 * Z[:, 0]) + Z[:, 1], 0.5 * Z[:, 2] + 1.0]
-    learner = IncrementalSSGP(10, forgetting_factor=0.99, linear_features=linear,
-                              n_restarts=0).fit(Z, Y)
-    z = np.array([2.0, -0.5, 3.0])
-    parts = decompose(learner, z)
-    np.testing.assert_allclose([p["total"] for p in parts], learner.predict(z[None])[0],
-                               rtol=1e-10, atol=1e-12)
-    for p in parts:
-        if linear is False:
-            assert np.all(p["linear"] == 0.0)
-        elif linear == (1,):
-            assert p["linear"][0] == 0.0 and p["linear"][2] == 0.0
-    with pytest.raises(ValueError, match="fitted SSGP"):
-        decompose(IncrementalSSGP(10), z)
-
-
-@pytest.mark.parametrize("argv", [["--seeds", "200"], ["--cells", "nowhere"],
-                                  ["--controllers", "robust-mpc"], ["--controllers", ""]])
-def test_the_rti_recovery_study_refuses_evaluation_seeds_unknown_cells_and_non_rti_controllers(
-        argv: list[str], tmp_path: Path) -> None:
-    """``benchmarks.studies.rti_recovery``: tuning only on tuning seeds, its own cells, RTI
-    controllers; a usage error runs nothing and writes nothing."""
-    from benchmarks.studies import rti_recovery
-
-    with pytest.raises(SystemExit):
-        rti_recovery.main([*argv, "--out", str(tmp_path / "out")])
-    assert not (tmp_path / "out").exists()
-
-
-def test_the_trusted_rti_evaluation_pairs_the_two_controllers_seed_by_seed(tmp_path: Path) -> None:
-    """``benchmarks.studies.rti_trust_evaluation``: a cell is met only with the converged
-    MPC's successes, within the rejection bound; the seeds are paired (lost by the RTI only,
-    by both, by the converged MPC only) and the rejected fraction is also given on the seeds
-    both won."""
-    from benchmarks.studies import rti_trust_evaluation as ev
-
-    key = {"env": "cartpole", "scenario": "online", "cell": "fixed truth", "n_init": "200",
-           "status": "ok"}
-    # seed: (RTI success, RTI steps, RTI rejected, converged success)
-    seeds = {0: (True, 100, 2, True), 1: (False, 100, 80, True), 2: (False, 100, 90, False),
-             3: (True, 100, 8, False)}
-    metrics = [{**key, "controller": ev.RTI, "seed": s, "success": ok, "rti_steps": n,
-                "rti_rejected": rej} for s, (ok, n, rej, _) in seeds.items()]
-    metrics += [{**key, "controller": ev.CONVERGED, "seed": s, "success": conv,
-                 "rti_steps": 0, "rti_rejected": 0} for s, (*_, conv) in seeds.items()]
-    summary = [{**key, "controller": ev.RTI, "episodes": 4, "success_rate": 0.5,
-                "rti_rejected_fraction": 180 / 400, "rti_steps": 400, "rti_recovered": 0,
-                "rti_rejected": 180, "final_position_error_max": "nan", "cost_mean": 20.0,
-                "solver_failures": 0},
-               {**key, "controller": ev.CONVERGED, "episodes": 4, "success_rate": 0.5,
-                "rti_rejected_fraction": "nan", "rti_steps": 0, "rti_recovered": 0,
-                "rti_rejected": 0, "final_position_error_max": "nan", "cost_mean": 18.0,
-                "solver_failures": 0}]
-    for name, rows in (("metrics.csv", metrics), ("summary.csv", summary)):
-        with (tmp_path / name).open("w", newline="") as fh:
-            writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
-            writer.writeheader()
-            writer.writerows(rows)
-    pair = ev.paired(tmp_path / "metrics.csv")[("cartpole", "online", "fixed truth", "200")]
-    assert (pair["rti_only"], pair["both"], pair["converged_only"]) == (1, 1, 1)
-    assert pair["rejected_both_won"] == pytest.approx(0.02)
-    (cell,) = ev.cells(tmp_path / "summary.csv")
-    assert (cell["success_rti"], cell["success_converged"]) == (2, 2)
-    assert not cell["met"]  # 45% of the RTI steps rejected
-    text = ev.write(tmp_path).read_text()
-    assert "| 1 / 1 / 1 | 2 |" in text and "**no**" in text
+@pytest.mark.parametrize("study", STUDIES)
+def test_each_study_imports(study: str) -> None:
+    """The studies (``benchmarks/studies``: the one-off measurements behind the decision records
+    of ``docs/studies``) are not the engine: the suite only imports each and finds its command
+    line."""
+    module = importlib.import_module(f"benchmarks.studies.{study}")
+    assert callable(getattr(module, "main", None))

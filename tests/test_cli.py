@@ -216,3 +216,16 @@ def test_a_known_mpc_with_an_unknown_scheme_names_the_schemes(
     assert message in line
     assert "valid controllers" not in line  # not the whole registry
     assert not (tmp_path / "out").exists()
+
+
+def test_print_report_prints_and_writes_the_text(tmp_path: Path,
+                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    """``print_report``, the tools' (studies') output: printed, and with ``out`` also written
+    there, its folders made."""
+    from benchmarks.cli import print_report
+
+    print_report("# a table\n")
+    assert capsys.readouterr().out == "# a table\n\n"
+    print_report("# a table\n", tmp_path / "new" / "report.md")
+    assert capsys.readouterr().out == "# a table\n\n"
+    assert (tmp_path / "new" / "report.md").read_text() == "# a table\n"
