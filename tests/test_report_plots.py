@@ -20,6 +20,7 @@ import gp_envs
 from benchmarks import report
 from benchmarks.cli import main
 from benchmarks.controllers import CONTROLLERS, ENVS
+from benchmarks.presets import Experiment
 from benchmarks.report import Trial
 from benchmarks.styles import (
     EPISODIC,
@@ -32,6 +33,7 @@ from benchmarks.styles import (
     unit,
 )
 from benchmarks.trial import TrialSpec
+from gp_agents.mpc.diagnostics import StepStatus
 
 
 # ----------------------------------------------------------------------------- helpers
@@ -255,13 +257,31 @@ def test_split_latency_is_act_minus_preparation_and_its_accepted_median_skips_re
         "diag_replanned": np.array([False, True, True, True, True, True]),
         "diag_solve_time": act / 2, "diag_act_time": act,
         "diag_preparation_time": preparation,
-        "diag_status": np.array(["", "RTI", "RTI", "RTI rejected (0.2), Solve_Succeeded",
-                                 "RTI", "RTI rejected (0.3), Solve_Succeeded"])})
+        "diag_status": np.array([StepStatus.REUSE, StepStatus.RTI, StepStatus.RTI,
+                                 StepStatus.RTI_REJECTED, StepStatus.RTI,
+                                 StepStatus.RTI_REJECTED])})
     (row,) = report.summarize("x", [trial])
     # latencies of the replanning steps: 1, 2, 39, 3, 49 ms; accepted: 1, 2, 3 ms
     assert row["latency_median_ms"] == pytest.approx(3.0)
     assert row["accepted_latency_median_ms"] == pytest.approx(2.0)
     assert row["preparation_median_ms"] == pytest.approx(1.0)
+
+
+def test_acceptance_counts_rejected_of_accepted_and_rejected_rti_steps_by_the_enum() -> None:
+    """A recovered RTI step is neither accepted as it was nor rejected: it is left out of the
+    count, as before the statuses were an enum."""
+    statuses = [StepStatus.REUSE, StepStatus.RTI, StepStatus.RTI_RECOVERED,
+                StepStatus.RTI_REJECTED, StepStatus.RTI, StepStatus.SOLVED]
+    trial = _episode("cartpole", "nominal-mpc-rti", n=len(statuses))
+    act = np.full(len(statuses), 2e-3)
+    trial.arrays.update({"diag_replanned": np.array([s != StepStatus.REUSE for s in statuses]),
+                         "diag_solve_time": act / 2, "diag_act_time": act,
+                         "diag_status": np.array(statuses)})
+    exp = Experiment("acc", "t", "d", (trial.spec,), ("acceptance",))
+    ctx = report.Context(Path("/nonexistent"), {trial.spec: trial},
+                         {"acc": report.summarize("acc", [trial])}, [], [])
+    (line,) = [x for x in report.section_acceptance(ctx, exp) if x.startswith("- cart pole")]
+    assert "; 1 of 3 RTI steps rejected (33%)" in line
 
 
 # ----------------------------------------------------------------------------- end to end

@@ -14,6 +14,7 @@ from benchmarks.controllers import CONTROLLERS, learned_term
 from benchmarks.presets import Experiment
 from benchmarks.report.common import Context, _fmt, _label, markdown_table
 from benchmarks.trial import EPISODE_KINDS
+from gp_agents.mpc.diagnostics import StepStatus
 
 SPEED_TARGET = 1.5
 """The MPC issue's speed target: an SSGP recipe's median act time at most this many times the
@@ -36,10 +37,12 @@ def section_acceptance(ctx: Context, exp: Experiment) -> list[str]:
     rejected: dict[tuple[str, str, str], list[int]] = defaultdict(lambda: [0, 0])
     for t in ctx.of(exp):  # the RTI safety net's rejections, from the per-step statuses
         if t.spec.kind in EPISODE_KINDS and t.ok and "diag_status" in t.arrays:
-            status = [str(v) for v in t.arrays["diag_status"]]
+            status = np.asarray(t.arrays["diag_status"]).astype(str)
             count = rejected[(t.spec.env, t.spec.scenario, t.spec.controller)]
-            count[0] += sum(v.startswith("RTI rejected") for v in status)
-            count[1] += sum(v == "RTI" or v.startswith("RTI rejected") for v in status)
+            # RTI steps: accepted as they were, or rejected (recovered steps are neither)
+            count[0] += int(np.count_nonzero(status == StepStatus.RTI_REJECTED))
+            count[1] += int(np.count_nonzero(np.isin(status, [StepStatus.RTI,
+                                                              StepStatus.RTI_REJECTED])))
 
     def speed(env: str, scenario: str, c: str, r: dict[str, Any]) -> str:
         text = (f"act median {_fmt(r['act_median_ms'], 2)} ms (solver "

@@ -13,6 +13,7 @@ from benchmarks.report.common import _label
 from benchmarks.report.load import Trial
 from benchmarks.report.stats import _finite_number, _max_finite, _mean, mean_ci, wilson_ci
 from benchmarks.trial import EPISODE_KINDS, STATUS_UNAVAILABLE, Cell
+from gp_agents.mpc.diagnostics import StepStatus
 
 
 def summarize(experiment: str, trials: Sequence[Trial]) -> list[dict[str, Any]]:
@@ -55,7 +56,7 @@ def summarize(experiment: str, trials: Sequence[Trial]) -> list[dict[str, Any]]:
             else (np.zeros(0), np.zeros(0)))
         # the same latency over the accepted RTI steps only: the QP's own cost, without the
         # converged solves that replace rejected steps
-        accepted = (np.concatenate([t.arrays["diag_status"][k] == "RTI"
+        accepted = (np.concatenate([t.arrays["diag_status"][k] == StepStatus.RTI
                                     for t, k in zip(ok, replans, strict=False)])
                     if latency.size and all("diag_status" in t.arrays for t in ok)
                     else np.zeros(0, bool))
