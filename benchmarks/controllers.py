@@ -9,9 +9,11 @@ A controller is named by a short string and built for one env and seed by
 - the RL algorithms ``sac``, ``ppo``, ``tqc`` (the shipped stable-baselines3 policies,
   :class:`gp_agents.rl.RLAgent`; a missing model, or one trained for another scenario, makes the
   controller *unavailable* for that env, which the runner records instead of crashing);
-- study variants under their own names (:data:`STUDY_VARIANTS`: the offline GP, the episodic
-  plans, the speed and residual variants of the paper's recipe, the RTI's other learned terms,
-  the warm-dual converged references), which earlier studies decided on.
+- study variants under their own names (:mod:`benchmarks.studies.variants`: the offline GP,
+  the episodic plans, the speed and residual variants of the paper's recipe, the RTI's other
+  learned terms, the warm-dual converged references), which earlier studies decided on; that
+  module registers them (:func:`register_controller`) when the registry first needs them
+  (:func:`load_study_variants`), so importing the engine imports no study.
 
 Every name the suite used before the recipes had names (``ssgp-mpc``,
 ``ssgp-mpc-linearized-parametric``, ``nominal-mpc-rti``, ...) stays a working alias
@@ -30,6 +32,7 @@ data, so a non-editable install has them).
 from __future__ import annotations
 
 import dataclasses
+import importlib
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -41,7 +44,7 @@ import gp_envs
 from benchmarks import USER_MODELS_DIR
 from benchmarks.outside_envs import OUTSIDE_ENVS, OutsideEnv
 from benchmarks.systems import benchmark_system
-from gp_agents.mpc import RECIPES, Converged, Episodic, GPInNLP, Residual, make_mpc
+from gp_agents.mpc import RECIPES, make_mpc
 from gp_agents.mpc.controller import default_learned_dynamics
 from gp_agents.mpc.recipes import OracleModel, recipe_settings
 from gp_agents.mpc.settings import SCHEME_NAMES
@@ -191,103 +194,6 @@ ALIASES: dict[str, tuple[str, str]] = {
 committed results and presets use these names, and build exactly the composed controller."""
 
 
-def _variant(name: str, label: str, description: str, learner: str | None = "ssgp",
-             oracle: bool = False, mode: str = "receding",
-             **settings: Any) -> tuple[str, ControllerRecipe]:
-    """A study variant: its own settings of :class:`gp_agents.PseudospectralMPC`."""
-    return name, ControllerRecipe(name, label, "mpc", description, learner=learner,
-                                  oracle=oracle, mode=mode,
-                                  learn_online=learner is not None and mode == "receding",
-                                  settings=tuple(settings.items()))
-
-
-def _episodic(base: str, label: str, desc: str, learner: str | None,
-              oracle: bool = False) -> tuple[str, ControllerRecipe]:
-    return _variant(f"{base}-episodic", f"{label} episodic",
-                    f"{desc}; planned once over the episode, open loop", learner, oracle,
-                    mode="episodic", horizon=Episodic())
-
-
-_SENS = Residual(sensitivities=True)
-STUDY_VARIANTS: dict[str, ControllerRecipe] = dict([
-    _variant("gp-mpc", "offline GP MPC", "nominal + exact GP fitted once on the initial data, "
-             "no online learning; receding-horizon MPC", learner="exact"),
-    _episodic("nominal", "nominal", "nominal physics", None),
-    _episodic("oracle", "oracle", "true model (upper bound)", None, oracle=True),
-    _episodic("gp", "offline GP", "nominal + exact GP fitted once on the initial data",
-              "exact"),
-    _episodic("ssgp", "SSGP", "nominal + incremental SSGP (r=50, lambda=0.995)", "ssgp"),
-    # speed variants of the paper's recipe (presets speed-options, linearized)
-    _variant("ssgp-mpc-nominal-hessian", "SSGP MPC, nominal Hessian",
-             "ssgp-mpc with the GP's second derivatives dropped from the Lagrangian Hessian "
-             "(term=GPInNLP(hessian='nominal'))", term=GPInNLP(hessian="nominal")),
-    _variant("ssgp-mpc-model-inputs", "SSGP MPC, model inputs",
-             "ssgp-mpc whose learner sees only the states the nominal model's accelerations "
-             "depend on (Residual(inputs='model'))", residual=Residual(inputs="model")),
-    _variant("ssgp-mpc-linearized", "SSGP MPC, linearized",
-             "ssgp-mpc planning with the GP residual linearized per node about the warm start "
-             "(term='linearized')", term="linearized"),
-    _variant("ssgp-mpc-linearized-model-inputs", "SSGP MPC, linearized, model inputs",
-             "ssgp-mpc-linearized whose learner sees only the states the nominal model's "
-             "accelerations depend on (Residual(inputs='model'))", term="linearized",
-             residual=Residual(inputs="model")),
-    # residual variants on the way to the robust recipe (preset robustness)
-    _variant("ssgp-mpc-sensitivities", "SSGP MPC, sensitivities",
-             "ssgp-mpc whose learner also sees the nominal model's parameter sensitivities "
-             "d f_p/d p (Residual(sensitivities=True)) and has linear features "
-             "(online_ssgp(linear_features=True))", learner="ssgp-linear", residual=_SENS),
-    _variant("ssgp-mpc-linearized-sensitivities", "SSGP MPC, linearized, sensitivities",
-             "ssgp-mpc-sensitivities planning with the GP residual linearized per node",
-             learner="ssgp-linear", residual=_SENS, term="linearized"),
-    _variant("ssgp-mpc-adaptive", "SSGP MPC, adaptive",
-             "ssgp-mpc-sensitivities whose learner also restarts from the new regime's samples "
-             "when its one-step prediction errors show that the system changed "
-             "(ChangeDetector)", learner="ssgp-adaptive", residual=_SENS),
-    _variant("ssgp-mpc-linearized-adaptive", "SSGP MPC, linearized, adaptive",
-             "ssgp-mpc-adaptive planning with the GP residual linearized per node",
-             learner="ssgp-adaptive", residual=_SENS, term="linearized"),
-    _variant("ssgp-mpc-linearized-guarded", "SSGP MPC, linearized, guarded",
-             "ssgp-mpc-linearized-adaptive whose residual is switched off while it predicts the "
-             "newest samples worse than the nominal model (NominalFallback)",
-             learner="ssgp-guarded", residual=_SENS, term="linearized"),
-    _variant("ssgp-mpc-linearized-saturated", "SSGP MPC, linearized, saturated",
-             "ssgp-mpc-linearized-guarded whose learner saturates its standardized inputs at "
-             "INPUT_SATURATION standard deviations", learner="ssgp-saturated", residual=_SENS,
-             term="linearized"),
-    # the RTI's other learned terms (preset rti)
-    _variant("ssgp-mpc-rti-linearized", "SSGP MPC, RTI linearized",
-             "paper-mpc@rti with the GP linearized per node at the shifted plan on every system "
-             "(term='linearized': its full Jacobian in the QP)", scheme="rti",
-             term="linearized"),
-    _variant("ssgp-mpc-rti-zero-order", "SSGP MPC, RTI zero-order",
-             "paper-mpc@rti with the GP's value frozen per node (term='zero-order': the nominal "
-             "QP structure, the gradient corrected with the previous multipliers)",
-             scheme="rti", term="zero-order"),
-    _variant("ssgp-mpc-rti-pattern", "SSGP MPC, RTI pattern",
-             "paper-mpc@rti with the GP's Jacobian kept only on the nominal model's Jacobian "
-             "pattern (term='linearized-pattern')", scheme="rti", term="linearized-pattern"),
-    # the converged references warm-started with the previous multipliers (preset rti)
-    _variant("nominal-mpc-warm-duals", "nominal MPC, warm duals",
-             "nominal-mpc whose converged IPOPT solves also start from the previous solve's "
-             "multipliers (Converged(warm_start_duals=True)): the fastest converged reference "
-             "for the RTI's step-time ratios", learner=None,
-             scheme=Converged(warm_start_duals=True)),
-    _variant("oracle-mpc-warm-duals", "oracle MPC, warm duals",
-             "oracle-mpc whose converged IPOPT solves also start from the previous solve's "
-             "multipliers (Converged(warm_start_duals=True))", learner=None, oracle=True,
-             scheme=Converged(warm_start_duals=True)),
-])
-for _name in ("ssgp-mpc-rti-linearized", "ssgp-mpc-rti-zero-order", "ssgp-mpc-rti-pattern"):
-    _base = STUDY_VARIANTS[_name]
-    STUDY_VARIANTS[f"{_name}-split"] = dataclasses.replace(
-        _base, name=f"{_name}-split", label=f"{_base.label}, split",
-        description=f"{_name} split into a preparation and a feedback phase "
-                    "(scheme='rti-split')",
-        settings=tuple((k, "rti-split" if k == "scheme" else v) for k, v in _base.settings))
-"""The study variants (not recipes; earlier studies decided on them): each with its own
-settings."""
-
-
 def learned_term(recipe: ControllerRecipe, system: str) -> str | None:
     """The ``term`` name ``recipe``'s MPC uses on ``system`` (its own setting, else
     :func:`gp_agents.mpc.controller.default_learned_dynamics` of its scheme and the system's
@@ -313,7 +219,7 @@ def _main_and_aliases() -> dict[str, ControllerRecipe]:
     return {**main, **aliases}
 
 
-CONTROLLERS: dict[str, ControllerRecipe] = {
+_BUILT_IN: dict[str, ControllerRecipe] = {
     **_main_and_aliases(),
     "sac": ControllerRecipe("sac", "SAC", "rl", "shipped stable-baselines3 SAC policy",
                             algo="sac", main=True),
@@ -321,19 +227,75 @@ CONTROLLERS: dict[str, ControllerRecipe] = {
                             algo="ppo", main=True),
     "tqc": ControllerRecipe("tqc", "TQC", "rl", "shipped sb3-contrib TQC policy", algo="tqc",
                             main=True),
-    **STUDY_VARIANTS,
 }
-"""The controller registry: every name (main, aliases, study variants, RL)."""
-RL_ALGORITHMS = tuple(name for name, r in CONTROLLERS.items() if r.family == "rl")
+
+STUDY_VARIANTS_MODULE = "benchmarks.studies.variants"
+"""The module that registers the study variants (:func:`load_study_variants`)."""
+_study_variants = {"loaded": False}
+
+
+def load_study_variants() -> bool:
+    """Register the study variants (import :data:`STUDY_VARIANTS_MODULE` once, which calls
+    :func:`register_controller` for each); True if this call registered them. The registry
+    calls it itself the first time it is asked for a name it does not hold or for its whole
+    list, so that importing the engine imports no study."""
+    if _study_variants["loaded"]:
+        return False
+    _study_variants["loaded"] = True
+    try:
+        importlib.import_module(STUDY_VARIANTS_MODULE)
+    except BaseException:
+        _study_variants["loaded"] = False
+        raise
+    return True
+
+
+class _Registry(Mapping[str, ControllerRecipe]):
+    """The controller registry: the built-in controllers, then whatever
+    :func:`register_controller` adds; the study variants are loaded on first need
+    (:func:`load_study_variants`): a name it does not hold, or its whole list."""
+
+    def __init__(self, controllers: Mapping[str, ControllerRecipe]) -> None:
+        self._controllers = dict(controllers)
+
+    def __getitem__(self, name: str) -> ControllerRecipe:
+        if name not in self._controllers:
+            load_study_variants()
+        return self._controllers[name]
+
+    def __iter__(self) -> Iterator[str]:
+        load_study_variants()
+        return iter(self._controllers)
+
+    def __len__(self) -> int:
+        load_study_variants()
+        return len(self._controllers)
+
+    def add(self, name: str, recipe: ControllerRecipe) -> None:
+        self._controllers[name] = recipe
+
+
+CONTROLLERS: Mapping[str, ControllerRecipe] = _Registry(_BUILT_IN)
+"""The controller registry: every name (main, aliases, RL, and the study variants, which
+:mod:`benchmarks.studies.variants` registers when first needed)."""
+RL_ALGORITHMS = tuple(name for name, r in _BUILT_IN.items() if r.family == "rl")
 """The RL recipes (``"sac"``, ``"ppo"``, ``"tqc"``): each loads its shipped policy where one
 exists for the env."""
-RTI_VARIANTS = {name: r for name, r in CONTROLLERS.items() if r.family == "mpc" and (
-    r.scheme != "converged" or dict(r.settings).get("scheme") in ("rti", "rti-split"))}
-"""Every real-time-iteration controller (composed names, aliases, study variants)."""
-SPEED_VARIANTS = {k: v for k, v in STUDY_VARIANTS.items() if k in (
-    "ssgp-mpc-nominal-hessian", "ssgp-mpc-model-inputs", "ssgp-mpc-linearized",
-    "ssgp-mpc-linearized-model-inputs")}
-"""The paper recipe's speed variants (presets ``speed-options`` and ``linearized``)."""
+
+
+def register_controller(name: str, recipe: ControllerRecipe) -> None:
+    """Add controller ``name``, built by ``recipe``, to :data:`CONTROLLERS` (how the study
+    variants are registered; ``gp-bench --controllers NAME`` and the presets can then name it).
+
+    Raises:
+        ValueError: ``recipe.name`` is not ``name``, or ``name`` is taken by another recipe.
+    """
+    if recipe.name != name:
+        raise ValueError(f"register_controller({name!r}): the recipe is named {recipe.name!r}")
+    registry = CONTROLLERS._controllers  # type: ignore[attr-defined]
+    if registry.get(name, recipe) != recipe:
+        raise ValueError(f"controller {name!r} is already registered with another recipe")
+    CONTROLLERS.add(name, recipe)  # type: ignore[attr-defined]
 
 
 class UnknownNameError(ValueError):

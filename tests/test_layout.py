@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import re
 from pathlib import Path
 
@@ -21,6 +22,8 @@ def _sources(*folders: str, skip: tuple[str, ...] = ()) -> dict[str, str]:
 
 
 def test_no_engine_or_library_module_imports_a_study():
+    """No import of a study in the engine or the library, but the registry's one lazy import of
+    the study variants (:func:`benchmarks.controllers.load_study_variants`)."""
     assert STUDIES, "benchmarks/studies has the studies"
     pattern = re.compile(r"benchmarks\.studies|from benchmarks import .*\b("
                          + "|".join(STUDIES) + r")\b")
@@ -30,6 +33,26 @@ def test_no_engine_or_library_module_imports_a_study():
             if any(pattern.search(line) and not line.lstrip().startswith(("#", '"', "``"))
                    and ("import" in line) for line in text.splitlines())]
     assert hits == []
+
+
+def test_importing_the_engine_imports_no_study_and_a_study_variant_loads_on_demand():
+    import subprocess
+    import sys
+
+    code = """if True:
+        import sys
+        import benchmarks.cli, benchmarks.controllers, benchmarks.presets, benchmarks.report
+        import benchmarks.runner, benchmarks.trial
+        from benchmarks.controllers import CONTROLLERS
+        studies = lambda: sorted(m for m in sys.modules if m.startswith("benchmarks.studies"))
+        assert studies() == [], studies()
+        assert CONTROLLERS["robust-mpc"].main and studies() == [], studies()
+        assert CONTROLLERS["ssgp-mpc-linearized"].recipe is None  # a study variant, registered
+        assert "benchmarks.studies.variants" in studies()
+        """
+    result = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True,
+                            text=True, env={**os.environ, "OMP_NUM_THREADS": "1"}, timeout=300)
+    assert result.returncode == 0, result.stderr[-2000:]
 
 
 def test_no_library_module_names_a_results_file():

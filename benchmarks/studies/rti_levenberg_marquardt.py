@@ -34,16 +34,16 @@ import gp_envs
 from benchmarks.cli import parse_seeds, print_report
 from benchmarks.controllers import (
     CONTROLLERS,
-    RTI_VARIANTS,
     build_controller,
     check_env_scenario,
     make_env,
 )
 from benchmarks.studies.rti_qp_solvers import SCENARIOS
+from benchmarks.studies.variants import RTI_VARIANTS
 from gp_agents.agent import rollout
 
 RECIPES = ("nominal-mpc-rti", "nominal-mpc-rti-split", "ssgp-mpc-rti", "ssgp-mpc-rti-split")
-"""The RTI recipes compared (:data:`benchmarks.controllers.RTI_VARIANTS`)."""
+"""The RTI recipes compared (:data:`benchmarks.studies.variants.RTI_VARIANTS`)."""
 MUS = (0.0, 0.003, 0.01, 0.03)
 TUNING_SEEDS = tuple(range(100, 116))
 

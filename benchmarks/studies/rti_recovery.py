@@ -204,7 +204,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     unknown = sorted(set(cells) - set(CELLS))
     if unknown:
         parser.error(f"unknown cells {unknown}; known: {list(CELLS)}")
-    from benchmarks.controllers import RTI_VARIANTS
+    from benchmarks.studies.variants import RTI_VARIANTS
 
     controllers = [c for c in args.controllers.split(",") if c]
     if not controllers or set(controllers) - set(RTI_VARIANTS):
