@@ -5,7 +5,9 @@ Usage::
     python -m benchmarks.readme_table benchmarks/results/quick
     python -m benchmarks.readme_table benchmarks/results/full --experiment sample-efficiency
 
-The table is generated from the CSV the report was built from, never typed in.
+The table is generated from the CSV the report was built from, never typed in. Controllers are
+named by their CLI names (an older alias by the name it stands for), with one legend line under
+the table giving each one's label and description.
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 COLUMNS = (
-    ("env", "env"), ("scenario", "scenario"), ("label", "controller"),
+    ("env", "env"), ("scenario", "scenario"), ("controller", "controller"),
     ("episodes", "episodes"), ("success_rate", "success rate [95% CI]"),
     ("cost_mean", "mean cost [95% CI]"),
     ("final_distance_mean", "final distance"), ("episodes_with_violation", "episodes w/ violation"),
@@ -26,7 +28,8 @@ COLUMNS = (
 )
 OUTSIDE_COLUMNS = (
     ("env", "env"), ("scenario", "scenario"), ("n_init", "initial samples"),
-    ("label", "controller"), ("episodes", "episodes"), ("success_rate", "success rate [95% CI]"),
+    ("controller", "controller"), ("episodes", "episodes"),
+    ("success_rate", "success rate [95% CI]"),
     ("return_mean", "env's return [95% CI]"), ("data_steps_mean", "env steps of data"),
     ("act_median_ms", "act median (ms)"),
 )
@@ -95,7 +98,7 @@ def readme_table(report_dir: Path, experiment: str | None = None) -> str:
     if any(r.get("cell", "fixed truth") != "fixed truth" for r in rows):
         columns.insert(2, ("cell", "cell"))
     if len({r.get("n_init") for r in rows}) > 1:
-        columns.insert(columns.index(("label", "controller")), ("n_init", "initial samples"))
+        columns.insert(columns.index(("controller", "controller")), ("n_init", "initial samples"))
     return _table(rows, columns)
 
 
@@ -113,15 +116,29 @@ def _headline(rows: list[dict[str, str]]) -> list[dict[str, str]]:
 
 def _table(rows: list[dict[str, str]], columns: list[tuple[str, str]]) -> str:
     lines = ["| " + " | ".join(h for _, h in columns) + " |",
-             "|" + "|".join("---" if k in ("env", "scenario", "label", "cell") else "---:"
+             "|" + "|".join("---" if k in ("env", "scenario", "controller", "cell") else "---:"
                             for k, _ in columns) + "|"]
     for r in rows:
-        cells = [_cell(k, r[k], r) for k, _ in columns]
+        cells = [_controller(r) if k == "controller" else _cell(k, r[k], r) for k, _ in columns]
         if r["status"] == "not available":
             n = columns.index(("episodes", "episodes"))
             cells = [*cells[:n], "not available", *["-"] * (len(columns) - n - 1)]
         lines.append("| " + " | ".join(cells) + " |")
+    if all("controller" in r for r in rows):
+        from benchmarks.report.common import controller_legend
+
+        lines += controller_legend(r["controller"] for r in rows)
     return "\n".join(lines)
+
+
+def _controller(row: dict[str, str]) -> str:
+    """The row's controller by its CLI name (a CSV without a ``controller`` column: its
+    label)."""
+    if "controller" not in row:
+        return row.get("label", "")
+    from benchmarks.report.common import cli_name
+
+    return f"`{cli_name(row['controller'])}`"
 
 
 def main(argv: Sequence[str] | None = None) -> int:

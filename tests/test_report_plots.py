@@ -153,9 +153,9 @@ def test_trajectories_have_units_distinct_colours_and_say_episodic_only_when_it_
         "x (m)", "theta (rad)", "xdot (m/s)", "thetadot (rad/s)", "f (N)"]
     for ax in axes[:5]:
         lines = _lines_by_label(ax)
-        colours = {c: lines[CONTROLLERS[c].label].get_color() for c in receding}
+        colours = {c: lines[report.cli_name(c)].get_color() for c in receding}
         assert len(set(colours.values())) == len(receding)
-        nominal, oracle = lines["nominal MPC"], lines["oracle MPC"]
+        nominal, oracle = lines["nominal-mpc"], lines["oracle-mpc"]
         assert nominal.get_zorder() < oracle.get_zorder()
         assert nominal.get_linewidth() > oracle.get_linewidth()
     assert "episodic" not in fig._suptitle.get_text()
@@ -165,8 +165,8 @@ def test_trajectories_have_units_distinct_colours_and_say_episodic_only_when_it_
     assert "dashed: episodic" in fig._suptitle.get_text()
     assert "dash-dot" not in fig._suptitle.get_text()
     lines = _lines_by_label(fig.axes[0])
-    assert lines["nominal episodic"].get_linestyle() == "--"
-    assert lines["nominal MPC"].get_linestyle() == "-"
+    assert lines["nominal-episodic"].get_linestyle() == "--"
+    assert lines["nominal-mpc"].get_linestyle() == "-"
 
 
 def test_step_times_have_the_control_period_of_each_env_and_coloured_boxes() -> None:
@@ -311,8 +311,8 @@ def test_a_tiny_real_run_draws_the_control_period_units_and_the_dubins_paths(
     assert "episodic" not in traj._suptitle.get_text()
     colours = {line.get_label(): line.get_color() for line in traj.axes[0].get_lines()
                if not str(line.get_label()).startswith("_")}
-    assert colours == {"nominal MPC": style("nominal-mpc").color,
-                       "oracle MPC": style("oracle-mpc").color}
+    assert colours == {"nominal-mpc": style("nominal-mpc").color,
+                       "oracle-mpc": style("oracle-mpc").color}
 
 
 def test_step_scaling_figure_has_a_line_per_recipe_at_the_values_run_and_the_period() -> None:
@@ -326,11 +326,12 @@ def test_step_scaling_figure_has_a_line_per_recipe_at_the_values_run_and_the_per
     fig = report.step_scaling_figure(rows)
     nodes, rank = fig.axes
     lines = _lines_by_label(nodes)
-    assert list(lines["nominal MPC, RTI"].get_xdata()) == [6, 10, 24]  # sorted
-    assert lines["nominal MPC, RTI"].get_linestyle() == RTI
-    assert lines["SSGP MPC, RTI"].get_color() == style("ssgp-mpc-rti").color
-    assert set(_lines_by_label(rank)) >= {"SSGP MPC, RTI"}
-    assert "nominal MPC, RTI" not in _lines_by_label(rank)
+    # figures name controllers by their CLI names (an older alias by the name it stands for)
+    assert list(lines["nominal-mpc@rti"].get_xdata()) == [6, 10, 24]  # sorted
+    assert lines["nominal-mpc@rti"].get_linestyle() == RTI
+    assert lines["paper-mpc@rti"].get_color() == style("ssgp-mpc-rti").color
+    assert set(_lines_by_label(rank)) >= {"paper-mpc@rti"}
+    assert "nominal-mpc@rti" not in _lines_by_label(rank)
     for ax in (nodes, rank):
         (period,) = _control_period_lines(ax)
         assert np.allclose(period.get_ydata(), 1e3 * _dt("cartpole"))

@@ -21,7 +21,7 @@ rows), :mod:`~benchmarks.report.stats` (intervals), :mod:`~benchmarks.report.sum
 importable from ``benchmarks.report`` itself.
 """
 
-from benchmarks.report.common import Context, SectionFn, markdown_table
+from benchmarks.report.common import Context, SectionFn, cli_name, controller_legend, markdown_table
 from benchmarks.report.figures import (
     data_efficiency_figure,
     paths_figure,
@@ -84,7 +84,9 @@ __all__ = [
     "PublishedReturn",
     "SectionFn",
     "Trial",
+    "cli_name",
     "compute_rows",
+    "controller_legend",
     "data_efficiency_figure",
     "load_trials",
     "markdown_table",

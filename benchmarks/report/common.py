@@ -20,9 +20,38 @@ from benchmarks.styles import Style, style
 from benchmarks.trial import TrialSpec
 
 
+def cli_name(controller: str) -> str:
+    """The controller's CLI name: its own, or for an older name kept as an alias
+    (:data:`benchmarks.controllers.ALIASES`, e.g. ``ssgp-mpc-linearized-parametric``) the
+    composed name it stands for (``robust-mpc``). The one vocabulary of reports, docs pages and
+    README tables."""
+    recipe = CONTROLLERS.get(controller)
+    return recipe.alias_of if recipe is not None and recipe.alias_of else controller
+
+
 def _label(controller: str) -> str:
+    """The controller's name in figures: its :func:`cli_name`."""
+    return cli_name(controller)
+
+
+def _name(controller: str) -> str:
+    """The controller's name in Markdown: its :func:`cli_name` as code."""
+    return f"`{cli_name(controller)}`"
+
+
+def _description(controller: str) -> str:
+    """The recipe's label (the ``label`` column of ``summary.csv``; the name if it has none)."""
     recipe = CONTROLLERS.get(controller)
     return recipe.label if recipe else controller
+
+
+def controller_legend(controllers: Iterable[str]) -> list[str]:
+    """One legend line under a table naming ``controllers``: each :func:`cli_name` with the
+    recipe's label and description (none known: no lines)."""
+    names = [n for n in dict.fromkeys(cli_name(c) for c in controllers) if n in CONTROLLERS]
+    items = [f"`{n}` ({CONTROLLERS[n].label}): {CONTROLLERS[n].description.rstrip('.')}."
+             for n in names]
+    return ["", "Controllers: " + " ".join(items)] if items else []
 
 
 def _style(controller: str) -> Style:

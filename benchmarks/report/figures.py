@@ -309,19 +309,19 @@ def data_efficiency_figure(env: str, rows: Sequence[dict[str, Any]], dt: float) 
         st = _style(c)
         if CONTROLLERS[c].learner is None:
             r = group[0]
-            ax_s.axhline(r["success_rate"], color=st.color, ls=":", lw=1, label=r["label"])
+            ax_s.axhline(r["success_rate"], color=st.color, ls=":", lw=1, label=c)
             if math.isfinite(r["interaction_mean_s"]):
                 ax_t.axhline(r["interaction_mean_s"], color=st.color, ls=":", lw=1,
-                             label=r["label"])
+                             label=c)
             continue
         group = sorted(group, key=lambda r: r["n_init"])
         x = [r["n_init"] * dt for r in group]
         ax_s.plot(x, [r["success_rate"] for r in group], **st.line(len(x), len(x)),
-                  label=f"{group[0]['label']} (trial 1)")
+                  label=f"{c} (trial 1)")
         ax_s.plot(x, [r["trials_success_rate"] for r in group], color=st.color, ls="--",
-                  lw=0.8, label=f"{group[0]['label']} (within {_max_trials()} trials)")
+                  lw=0.8, label=f"{c} (within {_max_trials()} trials)")
         ax_t.plot(x, [r["interaction_trials_mean_s"] for r in group],
-                  **st.line(len(x), len(x)), label=group[0]["label"])
+                  **st.line(len(x), len(x)), label=c)
     for a in PUBLISHED_ANCHORS.get(env, ()):  # whole trials counted: see the table's notes
         rate = f", {a.success:.0%} success" if math.isfinite(a.success) else ""
         ax_t.axhline(a.interaction_s, color="0.5", ls="-.", lw=0.8)

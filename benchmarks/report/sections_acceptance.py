@@ -12,7 +12,7 @@ import numpy as np
 
 from benchmarks.controllers import CONTROLLERS, learned_term
 from benchmarks.presets import Experiment
-from benchmarks.report.common import Context, _fmt, _label, markdown_table
+from benchmarks.report.common import Context, _fmt, _name, controller_legend, markdown_table
 from benchmarks.trial import EPISODE_KINDS
 from gp_agents.mpc.diagnostics import StepStatus
 
@@ -55,7 +55,7 @@ def section_acceptance(ctx: Context, exp: Experiment) -> list[str]:
                                                                            SPEED_TARGET)
         if rti and c.startswith(("nominal", "oracle")):  # against its converged references
             base = c[: -len("-rti")]
-            refs = [(base, f"the converged {_label(base)}'s"),
+            refs = [(base, f"the converged {_name(base)}'s"),
                     (f"{base}-warm-duals", "with warm duals")]
             parts = []
             for ref, name in refs:
@@ -70,7 +70,7 @@ def section_acceptance(ctx: Context, exp: Experiment) -> list[str]:
         if c.startswith("ssgp") and nominal and nominal["act_median_ms"] > 0:  # act vs act
             ratio = r["act_median_ms"] / nominal["act_median_ms"]
             verdict = "met" if ratio <= target else "not met"
-            text += (f" = **{ratio:.2f}x** the {_label(reference)}'s (target {target}x: "
+            text += (f" = **{ratio:.2f}x** the {_name(reference)}'s (target {target}x: "
                      f"{verdict})")
         n_rej, n_rti = rejected.get((env, scenario, c), (0, 0))
         if rti and n_rti:
@@ -80,14 +80,14 @@ def section_acceptance(ctx: Context, exp: Experiment) -> list[str]:
     for c in order:
         r = get("cartpole", "online", c)
         if r:
-            lines.append(f"- cart pole `online`, {_label(c)}: success "
+            lines.append(f"- cart pole `online`, {_name(c)}: success "
                          f"{round(r['success_rate'] * r['episodes'])}/{r['episodes']}, mean "
                          f"cost {_fmt(r['cost_mean'])}, {speed('cartpole', 'online', c, r)}")
     for scenario in ("gp", "online"):
         for c in order:
             r = get("quadrotor", scenario, c)
             if r:
-                lines.append(f"- quadrotor `{scenario}`, {_label(c)}: final position error mean "
+                lines.append(f"- quadrotor `{scenario}`, {_name(c)}: final position error mean "
                              f"{_fmt(r['final_position_error_mean'], 4)} m (max "
                              f"{_fmt(r['final_position_error_max'], 4)} m), success "
                              f"{round(r['success_rate'] * r['episodes'])}/{r['episodes']}, "
@@ -95,10 +95,12 @@ def section_acceptance(ctx: Context, exp: Experiment) -> list[str]:
     for c in order:
         r = get("dubins", "paper", c)
         if r:
-            lines.append(f"- Dubins, {_label(c)}: goal reached "
+            lines.append(f"- Dubins, {_name(c)}: goal reached "
                          f"{round(r['success_rate'] * r['episodes'])}/{r['episodes']}, "
                          f"episodes touching the obstacle {r['episodes_with_violation']}, "
                          f"{speed('dubins', 'paper', c, r)}")
+    lines += controller_legend(c for c in order if any(k[2] == c and v["episodes"]
+                                                      for k, v in by.items()))
     return lines + _linearization_errors(ctx, exp)
 
 
@@ -121,7 +123,7 @@ def _split_speed(env: str, scenario: str, c: str, r: dict[str, Any],
         other = get(env, scenario, ref)
         if other and other[key] > 0 and r["latency_median_ms"] > 0:
             ratio = r["latency_median_ms"] / other[key]
-            text += (f"; **{ratio:.2f}x** the {_label(ref)}'s {what} (target {target}x: "
+            text += (f"; **{ratio:.2f}x** the {_name(ref)}'s {what} (target {target}x: "
                      f"{'met' if ratio <= target else 'not met'})")
     n_rej, n_rti = rejected.get((env, scenario, c), (0, 0))
     if n_rti:
@@ -156,7 +158,7 @@ def _linearization_errors(ctx: Context, exp: Experiment) -> list[str]:
         e = e[np.isfinite(e)]  # NaN: a solve that gave no finite plan to check
         if not e.size:
             continue
-        rows.append([f"{env} `{scenario}`", _label(c), e.size, float(np.median(e)),
+        rows.append([f"{env} `{scenario}`", _name(c), e.size, float(np.median(e)),
                      float(np.percentile(e, 90)), float(np.mean(e > 1.0))])
     if not rows:
         return []
@@ -164,4 +166,5 @@ def _linearization_errors(ctx: Context, exp: Experiment) -> list[str]:
                            ["---", "---", "---:", "---:", "---:", "---:"])
     return ["", "Linearized recipes: error of the per-node expansion at the plan it produced, "
             "as a fraction of its tolerance (10% of the largest residual over the nodes plus "
-            "1e-3, per output; <= 1 is within it), over all solves:", "", *table]
+            "1e-3, per output; <= 1 is within it), over all solves:", "", *table,
+            *controller_legend(c for _e, _s, c in groups)]

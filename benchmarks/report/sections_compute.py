@@ -10,7 +10,14 @@ import numpy as np
 from benchmarks.compute import STEP_SCALING
 from benchmarks.presets import Experiment
 from benchmarks.report import figures
-from benchmarks.report.common import Context, _fmt, _label, _row_key, markdown_table
+from benchmarks.report.common import (
+    Context,
+    _fmt,
+    _name,
+    _row_key,
+    controller_legend,
+    markdown_table,
+)
 from benchmarks.report.figures import scaling_figure, step_scaling_figure, update_time_figure
 
 
@@ -34,9 +41,10 @@ def section_scaling(ctx: Context, exp: Experiment) -> list[str]:
     lines += markdown_table(
         ["env", "scenario", "controller", "samples learned", "act median (ms)", "p95 (ms)",
          "max (ms)", "batch update (s)", "success", "cost"],
-        [[r["env"], r["scenario"], _label(r.get("controller", "ssgp-mpc")), r["param"],
+        [[r["env"], r["scenario"], _name(r.get("controller", "ssgp-mpc")), r["param"],
           r["act_median_ms"], r["act_p95_ms"], r["act_max_ms"], r["batch_update_s"],
           r["success"], r["cost"]] for r in rows], ["---"] * 3 + ["---:"] * 7)
+    lines += controller_legend(c for _e, _s, c in groups)
     return lines
 
 
@@ -71,8 +79,9 @@ def section_step_scaling(ctx: Context, exp: Experiment) -> list[str]:
         lines += ["", f"Against the {what}:", ""]
         lines += markdown_table(
             ["env", "controller", *[str(v) for v in values]],
-            [[f"{e} `{sc}`", _label(c), *[cell(by.get((e, sc, c, v))) for v in values]]
+            [[f"{e} `{sc}`", _name(c), *[cell(by.get((e, sc, c, v))) for v in values]]
              for e, sc, c in groups], ["---", "---"] + ["---:"] * len(values))
+        lines += controller_legend(c for _e, _s, c in groups)
     return lines
 
 

@@ -18,7 +18,9 @@ from benchmarks.report.common import (
     _fmt,
     _interval,
     _max_trials,
+    _name,
     _seconds,
+    controller_legend,
     markdown_table,
 )
 from benchmarks.report.figures import data_efficiency_figure
@@ -53,7 +55,8 @@ def section_data_efficiency(ctx: Context, exp: Experiment) -> list[str]:
             learning = CONTROLLERS[r["controller"]].learner is not None
             n_ok = round(r["success_rate"] * r["episodes"]) if r["episodes"] else 0
             body.append([
-                r["label"], _seconds(r["n_init"], dt) if learning else "-", r["episodes"],
+                _name(r["controller"]), _seconds(r["n_init"], dt) if learning else "-",
+                r["episodes"],
                 f"{_fmt(r['success_rate'])} {_interval(r['success_ci_low'], r['success_ci_high'])}",
                 f"{_fmt(r['cost_mean'])} {_interval(r['cost_ci_low'], r['cost_ci_high'])}",
                 f"{_fmt(r['interaction_mean_s'])} "
@@ -73,6 +76,7 @@ def section_data_efficiency(ctx: Context, exp: Experiment) -> list[str]:
                              ctx.out_dir, f"{exp.name}_{env}.png")
         lines += ["", f"### {_env_title(env, scenario)}", "", f"![data efficiency]({name})", ""]
         lines += markdown_table(header, body, ["---", "---:"] + ["---:"] * (len(header) - 2))
+        lines += controller_legend(r["controller"] for r in rows)
         anchors = PUBLISHED_ANCHORS.get(env, ())
         if anchors:
             lines += ["", "Published figures (cited, not measured here) and how their setup "
@@ -121,7 +125,7 @@ def section_own_env(ctx: Context, exp: Experiment) -> list[str]:
         for r in rows:
             learning = CONTROLLERS[r["controller"]].learner is not None
             body.append([
-                r["label"], r["n_init"] if learning else "-", r["episodes"],
+                _name(r["controller"]), r["n_init"] if learning else "-", r["episodes"],
                 f"{_fmt(r['return_mean'], 1)} "
                 f"{_interval(r['return_ci_low'], r['return_ci_high'], 1)}",
                 f"{_fmt(r['success_rate'])} {_interval(r['success_ci_low'], r['success_ci_high'])}",
@@ -130,6 +134,7 @@ def section_own_env(ctx: Context, exp: Experiment) -> list[str]:
                 _fmt(r["act_median_ms"], 1), r["status"]])
         lines += ["", f"### {_env_title(env, scenario)}", ""]
         lines += markdown_table(header, body, ["---"] + ["---:"] * 7 + ["---"])
+        lines += controller_legend(r["controller"] for r in rows)
         published = PUBLISHED_RETURNS.get(env, ())
         if published and scenario == ENVS[env].default_scenario:
             lines += ["", "Published returns on the same task (cited, computed from the "

@@ -24,9 +24,10 @@ from benchmarks.report.common import (
     _first_ok,
     _fmt,
     _interval,
-    _label,
+    _name,
     _style,
     _time_varying,
+    controller_legend,
     markdown_table,
 )
 from benchmarks.report.figures import paths_figure, step_times_figure, trajectories_figure
@@ -41,7 +42,7 @@ def _rti_paths_table(rows: list[dict[str, Any]]) -> list[str]:
     rti = [r for r in rows if _finite_number(r.get("rti_steps")) and r["rti_steps"] > 0]
     if not rti:
         return []
-    body = [[f"{r['env']} `{r['scenario']}`, {r['cell']}", r["label"], r["episodes"],
+    body = [[f"{r['env']} `{r['scenario']}`, {r['cell']}", _name(r["controller"]), r["episodes"],
              r["rti_steps"], r["rti_recovered"], r["rti_rejected"],
              f"{100 * r['rti_rejected_fraction']:.1f}%"] for r in rti]
     return ["", "Real-time iteration paths per cell (summed over the episodes): RTI steps taken, "
@@ -62,7 +63,7 @@ def section_summary(ctx: Context, exp: Experiment) -> list[str]:
     for r in rows:
         cell = "" if r["cell"] == "fixed truth" else f", {r['cell']}"
         body.append([
-            f"{r['env']} `{r['scenario']}`{cell}", r["label"], r["episodes"],
+            f"{r['env']} `{r['scenario']}`{cell}", _name(r["controller"]), r["episodes"],
             f"{_fmt(r['success_rate'])} {_interval(r['success_ci_low'], r['success_ci_high'])}",
             f"{_fmt(r['cost_mean'])} {_interval(r['cost_ci_low'], r['cost_ci_high'])}",
             r["time_to_success_mean_s"],
@@ -78,6 +79,7 @@ def section_summary(ctx: Context, exp: Experiment) -> list[str]:
              "final time); *final dist.*: `info['distance_to_goal']`; *violations*: steps with "
              "`info['constraint_violation']`; *data steps*: env steps of data used):", ""]
     lines += markdown_table(header, body, ["---", "---"] + ["---:"] * 10 + ["---"])
+    lines += controller_legend(r["controller"] for r in rows)
     lines += _rti_paths_table(rows)
     unavailable = [t for t in ctx.of(exp) if t.status == STATUS_UNAVAILABLE]
     reasons = sorted({f"{t.spec.controller} on {t.spec.env} `{t.spec.scenario}`: "
@@ -133,12 +135,14 @@ def section_paper_tables(ctx: Context, exp: Experiment) -> list[str]:
                     if mode == "episodic":
                         success += f" / {_fmt(r['success_held_rate'])}"
                     cells += [_fmt(r["cost_mean"]), success, _fmt(r["final_distance_mean"], 3)]
-                label = CONTROLLERS[f"{base}-mpc"].label.replace(" MPC", "")
-                body.append([env, label, *cells])
+                body.append([env, f"{_name(f'{base}-episodic')}, {_name(f'{base}-mpc')}",
+                             *cells])
         lines += markdown_table(
-            ["env", "model", "episodic cost", "episodic success (final / held)",
+            ["env", "controllers", "episodic cost", "episodic success (final / held)",
              "episodic final distance", "MPC cost", "MPC success", "MPC final distance"],
             body, ["---", "---", "---:", "---:", "---:", "---:", "---:", "---:"])
+        lines += controller_legend(f"{base}-{mode}" for base in MPC_BASES
+                                   for mode in ("episodic", "mpc"))
     defects = [(r["env"], r["scenario"], r["plan_plant_defect_max"])
                for r in ctx.summaries[exp.name]
                if r["controller"] == "oracle-episodic" and r["episodes"]]
@@ -203,12 +207,13 @@ def section_step_times(ctx: Context, exp: Experiment) -> list[str]:
     for env, per in groups.items():
         for c, arrays in per.items():
             d = 1e3 * np.concatenate(arrays)
-            rows.append([env, _label(c), len(d), float(np.median(d)),
+            rows.append([env, _name(c), len(d), float(np.median(d)),
                          float(np.percentile(d, 95)), float(d.max())])
     name = figures._save(fig, ctx.out_dir, f"{exp.name}_step_times.png")
     lines = ["", f"![step times]({name})", ""]
     lines += markdown_table(["env", "controller", "steps", "median (ms)", "p95 (ms)", "max (ms)"],
                             rows, ["---", "---", "---:", "---:", "---:", "---:"])
+    lines += controller_legend(c for per in groups.values() for c in per)
     return lines
 
 
@@ -241,21 +246,21 @@ def section_sample_efficiency(ctx: Context, exp: Experiment) -> list[str]:
                 steps = [p["timesteps"] for p in curve]
                 curve_style = {"color": st.color, "ls": st.linestyle, "lw": 1, "alpha": 0.8}
                 ax_s.plot(steps, [p["success_rate"] for p in curve], **curve_style,
-                          label=f"{algo.upper()} learning curve (training evals)")
+                          label=f"{algo} learning curve (training evals)")
                 ax_r.plot(steps, [p["mean_return"] for p in curve], **curve_style,
-                          label=f"{algo.upper()} learning curve (training evals)")
+                          label=f"{algo} learning curve (training evals)")
         for r in rows:
             if not r["episodes"]:
-                table.append([r["label"], "", "", "", "", r["status"]])
+                table.append([_name(r["controller"]), "", "", "", "", r["status"]])
                 continue
             point = _style(r["controller"]).point()
             interaction = r.get("interaction_mean_s", math.nan)
             before = (interaction / dt if r["controller"] not in RL_ALGORITHMS
                       and math.isfinite(interaction) else math.nan)
             x = before if math.isfinite(before) else r["data_steps_mean"]
-            ax_s.plot([x], [r["success_rate"]], label=r["label"], **point)
-            ax_r.plot([x], [-r["cost_mean"]], label=r["label"], **point)
-            table.append([r["label"], _fmt(before, 0), _fmt(r["data_steps_mean"], 0),
+            ax_s.plot([x], [r["success_rate"]], label=r["controller"], **point)
+            ax_r.plot([x], [-r["cost_mean"]], label=r["controller"], **point)
+            table.append([_name(r["controller"]), _fmt(before, 0), _fmt(r["data_steps_mean"], 0),
                           r["success_rate"], -r["cost_mean"], f"{r['episodes']} episodes"])
         for ax, ylabel in ((ax_s, "success rate"), (ax_r, "return (= minus cost)")):
             ax.set_xscale("log")
@@ -272,6 +277,7 @@ def section_sample_efficiency(ctx: Context, exp: Experiment) -> list[str]:
                                  "env steps of data used", "success rate", "mean return",
                                  "evaluated"], table,
                                 ["---", "---:", "---:", "---:", "---:", "---"])
+        lines += controller_legend(r["controller"] for r in rows)
     return lines
 
 
@@ -283,8 +289,8 @@ def section_robustness(ctx: Context, exp: Experiment) -> list[str]:
     for r in rows:
         cells[(r["env"], r["scenario"], r["cell"], r["n_init"])][r["controller"]] = r
     learners = [c for c in controllers if CONTROLLERS[c].learner is not None]
-    header = ["env", "scenario", "cell", "initial samples", *[_label(c) for c in controllers],
-              *[f"{_label(c)} / oracle" for c in learners if "oracle-mpc" in controllers],
+    header = ["env", "scenario", "cell", "initial samples", *[_name(c) for c in controllers],
+              *[f"{_name(c)} / oracle" for c in learners if "oracle-mpc" in controllers],
               "episodes with a violation", "max final pos. err. (m)", "recovered / max (s)"]
     body = []
     for (env, scenario, cell, n_init), by in cells.items():
@@ -302,12 +308,12 @@ def section_robustness(ctx: Context, exp: Experiment) -> list[str]:
             line.append(_fmt(r["success_rate"] / oracle["success_rate"])
                         if r and oracle and oracle["success_rate"] else "")
         present = [by[c] for c in controllers if c in by and by[c]["episodes"]]
-        line.append(", ".join(f"{_label(r['controller'])} {r['episodes_with_violation']}"
+        line.append(", ".join(f"{_name(r['controller'])} {r['episodes_with_violation']}"
                               for r in present if r["episodes_with_violation"]) or "0")
-        line.append(", ".join(f"{_label(r['controller'])} {_fmt(r['final_position_error_max'], 3)}"
+        line.append(", ".join(f"{_name(r['controller'])} {_fmt(r['final_position_error_max'], 3)}"
                               for r in present if np.isfinite(r["final_position_error_max"]))
                     or "n/a")
-        line.append(", ".join(f"{_label(r['controller'])} {r['recovered']}/{r['episodes']}, "
+        line.append(", ".join(f"{_name(r['controller'])} {r['recovered']}/{r['episodes']}, "
                               f"{_fmt(r['recovery_max_s'])}"
                               for r in present if _time_varying(r)) or "n/a")
         body.append(line)
@@ -320,4 +326,5 @@ def section_robustness(ctx: Context, exp: Experiment) -> list[str]:
              "took. Initial data: *same* = from the system then controlled, *diff* = from an "
              "independent draw of the same spread.", ""]
     lines += markdown_table(header, body, ["---"] * 3 + ["---:"] * (len(header) - 3))
+    lines += controller_legend(controllers)
     return lines

@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from benchmarks.report.common import _label
+from benchmarks.report.common import _description
 from benchmarks.report.load import Trial
 from benchmarks.report.stats import _finite_number, _max_finite, _mean, mean_ci, wilson_ci
 from benchmarks.trial import EPISODE_KINDS, STATUS_UNAVAILABLE, Cell
@@ -72,7 +72,7 @@ def summarize(experiment: str, trials: Sequence[Trial]) -> list[dict[str, Any]]:
         rows.append({
             "experiment": experiment, "env": env, "scenario": scenario,
             "cell": cell.describe(), "n_init": n_init, "controller": controller,
-            "label": _label(controller), "status": status,
+            "label": _description(controller), "status": status,
             "episodes": len(ok),
             "success_rate": _mean([float(x["success"]) for x in m]),
             "success_ci_low": success_ci[0], "success_ci_high": success_ci[1],
