@@ -60,7 +60,7 @@ def run_act_scaling(spec: TrialSpec) -> dict[str, Any]:
     update_s = 0.0
     if n_samples > spec.n_init:
         extra = collect_initial_data(env, n_samples - spec.n_init, seed=_extra_seed(spec.seed))
-        Z, Y = agent.residual.targets(extra.X, extra.U, extra.X_next)
+        Z, Y = agent.config.residual.model(agent.model).targets(extra.X, extra.U, extra.X_next)
         t0 = time.perf_counter()
         agent.learner.update(Z, Y)
         update_s = time.perf_counter() - t0
@@ -77,7 +77,7 @@ def run_act_scaling(spec: TrialSpec) -> dict[str, Any]:
         "steps": len(act_times),
         "success": bool(info["success"]),
         "cost": episode.cost,
-        "solver_failures": int(agent.n_failures),
+        "solver_failures": int(agent.counts.failures),
     }
     env.close()
     return {"metrics": metrics, "arrays": {"act_time": act, "learner_samples": np.array(samples),
@@ -120,7 +120,7 @@ def run_update_time(spec: TrialSpec) -> dict[str, Any]:
 
 def run_step_scaling(spec: TrialSpec) -> dict[str, Any]:
     """One MPC recipe's step time with one setting changed (:data:`STEP_SCALING`)."""
-    from gp_agents import online_ssgp
+    from gp_agents import RecedingHorizon, online_ssgp
 
     if spec.kind not in STEP_SCALING:
         raise ValueError(f"unknown step-scaling kind {spec.kind!r}; known: {list(STEP_SCALING)}")
@@ -130,9 +130,9 @@ def run_step_scaling(spec: TrialSpec) -> dict[str, Any]:
     settings: dict[str, Any] = {}
     learner = None
     if spec.kind == "step-vs-nodes":
-        settings["n_nodes"] = value
+        settings["horizon"] = RecedingHorizon(n_nodes=value)
     elif spec.kind == "step-vs-horizon":
-        settings["horizon"] = value / 1000.0
+        settings["horizon"] = RecedingHorizon(value / 1000.0)
     else:
         learner = online_ssgp(value)
     env = make_env(spec.env, spec.scenario)
@@ -148,10 +148,10 @@ def run_step_scaling(spec: TrialSpec) -> dict[str, Any]:
         "steps": len(episode.act_times),
         "success": bool(episode.final_info["success"]),
         "cost": episode.cost,
-        "solver_failures": int(agent.n_failures),
-        "rti_rejected": int(getattr(planner, "n_rti_rejected", 0)),
-        "mesh": agent.mesh.describe(),
-        "horizon_s": float(agent.horizon),
+        "solver_failures": int(agent.counts.failures),
+        "rti_rejected": int(agent.counts.rti_rejected),
+        "mesh": planner.mesh.describe(),
+        "horizon_s": float(agent.config.schedule.horizon),
         "rank": int(getattr(agent.learner, "n_frequencies", 0)),
     }
     env.close()

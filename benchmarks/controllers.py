@@ -45,7 +45,7 @@ from benchmarks import USER_MODELS_DIR
 from benchmarks.outside_envs import OUTSIDE_ENVS, OutsideEnv
 from benchmarks.systems import benchmark_system
 from gp_agents.mpc import RECIPES, make_mpc
-from gp_agents.mpc.controller import default_learned_dynamics
+from gp_agents.mpc.config import default_term
 from gp_agents.mpc.recipes import OracleModel, recipe_settings
 from gp_agents.mpc.settings import SCHEME_NAMES
 from gp_envs.systems import SYSTEMS
@@ -196,7 +196,7 @@ committed results and presets use these names, and build exactly the composed co
 
 def learned_term(recipe: ControllerRecipe, system: str) -> str | None:
     """The ``term`` name ``recipe``'s MPC uses on ``system`` (its own setting, else
-    :func:`gp_agents.mpc.controller.default_learned_dynamics` of its scheme and the system's
+    :func:`gp_agents.mpc.config.default_term` of its scheme and the system's
     tuning), or None for a recipe with no learner."""
     if recipe.learner is None:
         return None
@@ -208,7 +208,7 @@ def learned_term(recipe: ControllerRecipe, system: str) -> str | None:
         return term if isinstance(term, str) else type(term).__name__
     scheme = settings.get("scheme", recipe.scheme)
     name = scheme if isinstance(scheme, str) else scheme.name
-    return default_learned_dynamics(name, system)
+    return default_term(name, system)
 
 
 def _main_and_aliases() -> dict[str, ControllerRecipe]:
@@ -551,7 +551,9 @@ def build_controller(name: str, env: gym.Env, env_name: str, seed: int,
         agent.pretrain(data)  # None (n_init 0): learned from the episode's first step
     agent.reset()
     return BuiltController(agent, obs, len(data) if data is not None else 0,
-                           {"horizon_s": agent.horizon, "mesh": agent.mesh.describe()}, data)
+                           {"horizon_s": agent.config.schedule.horizon,
+                            "mesh": agent.config.schedule.mesh(agent.model.dt).describe()},
+                           data)
 
 
 def _build_rl(recipe: ControllerRecipe, env: gym.Env, env_name: str, seed: int,

@@ -162,7 +162,7 @@ def run_peers(spec: TrialSpec) -> dict[str, Any]:
     n_ps_vars = int(ps.planner.ocp.n_variables) if ps.planner is not None else -1
     metrics = {
         "horizon_s": horizon,
-        "ps_nodes": ps.mesh.describe(),
+        "ps_nodes": ps.planner.mesh.describe() if ps.planner is not None else "",
         "dompc_discretization": f"{peer.n_horizon} intervals x Radau degree {COLLOCATION_DEG}",
         "ps_nlp_variables": n_ps_vars,
         "dompc_nlp_variables": peer.n_variables,
@@ -177,14 +177,14 @@ def run_peers(spec: TrialSpec) -> dict[str, Any]:
         "rti_time_ratio": float(np.median(rti["act"])) / med_theirs,
         "rti_cost": rti["cost"],
         "rti_success": rti["success"],
-        "rti_rejected": int(rti_agent.planner.n_rti_rejected),
+        "rti_rejected": int(rti_agent.counts.rti_rejected),
         "ps_cost": ours["cost"],
         "dompc_cost": theirs["cost"],
         "ps_success": ours["success"],
         "dompc_success": theirs["success"],
         "ps_termination": ours["termination"],
         "dompc_termination": theirs["termination"],
-        "ps_failures": int(ps.n_failures),
+        "ps_failures": int(ps.counts.failures),
         "dompc_failures": int(peer.n_failures),
         "dompc_version": peer.version,
     }

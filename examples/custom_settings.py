@@ -21,7 +21,7 @@ env = gym.make("gp_envs/DubinsObstacle-v0")
 
 # a recipe with one override: a longer horizon with more nodes
 agent = make_mpc(env, "robust", horizon=RecedingHorizon(horizon=5.0, n_nodes=14))
-print(agent.settings()["horizon"])
+print(agent.config.horizon)
 
 # the full form: the paper's learner in a split real-time iteration with a wider obstacle margin
 agent = PseudospectralMPC.from_env(
@@ -31,7 +31,7 @@ agent = PseudospectralMPC.from_env(
     residual=Residual(learn_online=True),
     constraints=Constraints(obstacle_margin=0.2),
 )
-print(agent.settings()["scheme"])
+print(agent.config.scheme)
 
 # a setting that does not apply is an error, not a silent no-op
 cartpole = gym.make("gp_envs/CartPoleSwingUp-v0")

@@ -81,6 +81,20 @@ class Episode:
         """``info["success"]`` at the last step (the env's held-at-the-goal criterion)."""
         return bool(self.final_info.get("success", False))
 
+    def summary(self) -> dict[str, Any]:
+        """The episode in a few numbers, as the RL tooling records them: ``return`` (sum of
+        rewards), ``success`` (``info["is_success"]`` at the last step, the key SB3 reads),
+        ``success_any`` (``info["is_success"]`` at some step), ``length`` (steps),
+        ``final_distance`` (``info["distance_to_goal"]`` at the end, in the task's units; NaN
+        without it) and ``end`` (the termination reason, or ``"time limit"``)."""
+        info = self.final_info
+        return {"return": float(np.sum(self.rewards)),
+                "success": bool(info.get("is_success", False)),
+                "success_any": any(bool(i.get("is_success", False)) for i in self.infos),
+                "length": self.steps,
+                "final_distance": float(info.get("distance_to_goal", np.nan)),
+                "end": info.get("termination_reason") or "time limit"}
+
 
 def rollout(env: gym.Env, agent: Agent, seed: int | None = None, *,
             options: dict[str, Any] | None = None, max_steps: int | None = None) -> Episode:

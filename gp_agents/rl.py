@@ -85,11 +85,9 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
-from gp_agents.agent import rollout as closed_loop
-
 __all__ = ["ALGORITHMS", "AngleFeatures", "BoundedShiftReward", "GoalBonusReward",
            "NormalizedAction", "RLAgent", "TimeFeature", "env_fingerprint", "episode_limit",
-           "get_env_state", "make_training_vec_env", "resolve_model_dir", "rollout",
+           "get_env_state", "make_training_vec_env", "resolve_model_dir",
            "saved_models", "set_env_state", "termination_terms", "wrap_env"]
 
 ALGORITHMS: dict[str, type[BaseAlgorithm]] = {"sac": SAC, "ppo": PPO, "tqc": TQC}
@@ -866,26 +864,3 @@ def resolve_model_dir(path: str | Path, search: Sequence[str | Path] = ()) -> Pa
              "(search=[...], e.g. benchmarks.controllers.MODELS_DIR for the shipped policies)")
     raise FileNotFoundError(f"no saved RLAgent ({METADATA_FILE} + {MODEL_FILE}) in {where}"
                             f"{found}")
-
-
-def rollout(agent: RLAgent, env: gym.Env, seed: int) -> dict[str, Any]:
-    """One episode of ``agent`` in ``env`` (:func:`gp_agents.agent.rollout`), summarized.
-
-    Args:
-        agent: the agent (anything with ``reset``, ``act`` and ``observe``).
-        env: a ``gym.make``-made env (its TimeLimit truncates the episode).
-        seed: ``env.reset`` seed.
-
-    Returns:
-        ``return`` (sum of rewards), ``success`` (``info["is_success"]`` at the last step, the
-        key SB3 reads), ``success_any`` (``info["is_success"]`` at some step), ``length``
-        (steps), ``final_distance`` (``info["distance_to_goal"]`` at the end, in the task's
-        units) and ``end`` (termination reason or "time limit").
-    """
-    ep = closed_loop(env, agent, seed)
-    info = ep.final_info
-    ever = any(bool(i.get("is_success", False)) for i in ep.infos)
-    return {"return": -ep.cost, "success": bool(info.get("is_success", False)),
-            "success_any": ever, "length": ep.steps,
-            "final_distance": float(info.get("distance_to_goal", np.nan)),
-            "end": info.get("termination_reason") or "time limit"}

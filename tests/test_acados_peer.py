@@ -23,6 +23,11 @@ from gp_agents import PseudospectralMPC
 from gp_envs.physics import quadrotor
 
 
+def mesh_of(agent):
+    """The mesh an agent plans on."""
+    return agent.config.schedule.mesh(agent.model.dt)
+
+
 @pytest.fixture(scope="module")
 def env_agent() -> tuple[gym.Env, PseudospectralMPC]:
     env = gym.make("gp_envs/Quadrotor-v0")
@@ -46,21 +51,22 @@ def test_export_round_trips_and_matches_the_env(env_agent) -> None:
     assert spec["nominal_params"] == dict(model.params)
     assert spec["plant_params"] == dict(gp_envs.oracle_model(env).params)
     assert spec["dt"] == model.dt and spec["plant_substeps"] == model.substeps
-    assert spec["horizon"] == agent.horizon and spec["our_nodes"] == agent.mesh.n_collocation
+    assert spec["horizon"] == agent.config.schedule.horizon
+    assert spec["our_nodes"] == mesh_of(agent).n_collocation
     for key, value in (("Q", task.Q), ("R", task.R), ("Qf", task.Qf), ("goal", task.goal),
                        ("u_ref", task.u_ref), ("u_lb", model.u_lb), ("u_ub", model.u_ub),
                        ("x_lb", model.x_lb), ("x_ub", model.x_ub)):
         np.testing.assert_array_equal(np.array(spec[key]), value)
     np.testing.assert_array_equal(spec["start"], env.unwrapped._state)
-    assert spec["state_margin"] == agent.constraints.state_margin
-    assert spec["state_penalty"] == agent.constraints.state_penalty
+    assert spec["state_margin"] == agent.config.constraints.state_margin
+    assert spec["state_penalty"] == agent.config.constraints.state_penalty
     assert spec["yaw_drag_ratio"] == quadrotor.YAW_DRAG_RATIO
     labels = [c["label"] for c in spec["configs"]]
-    assert labels == [f"acados N={agent.mesh.n_collocation}", "acados N=30"]
+    assert labels == [f"acados N={mesh_of(agent).n_collocation}", "acados N=30"]
     for config in spec["configs"]:
         steps = np.array(config["time_steps"])
         assert steps[0] == pytest.approx(model.dt)
-        assert steps.sum() == pytest.approx(agent.horizon)
+        assert steps.sum() == pytest.approx(agent.config.schedule.horizon)
 
 
 def test_worker_ode_and_plant_match_the_physics(env_agent) -> None:
@@ -89,8 +95,8 @@ def test_worker_shrunk_box_is_the_mpc_margin(env_agent) -> None:
     lb, ub = acados_peer_worker.shrunk_box(spec)
     model = env.unwrapped.nominal_model
     half = 0.5 * (model.x_ub - model.x_lb)
-    np.testing.assert_allclose(lb, model.x_lb + agent.constraints.state_margin * half)
-    np.testing.assert_allclose(ub, model.x_ub - agent.constraints.state_margin * half)
+    np.testing.assert_allclose(lb, model.x_lb + agent.config.constraints.state_margin * half)
+    np.testing.assert_allclose(ub, model.x_ub - agent.config.constraints.state_margin * half)
 
 
 def test_failed_setup_writes_a_skip_report(tmp_path: Path, monkeypatch) -> None:

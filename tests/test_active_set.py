@@ -8,7 +8,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from gp_agents import PseudospectralMPC
+from gp_agents import RTI, PseudospectralMPC
 from gp_agents.agent import rollout
 from gp_agents.mpc.active_set import ActiveSetQP
 from gp_agents.mpc.rti import resolve_qp_solver
@@ -124,10 +124,10 @@ def test_rti_with_the_active_set_qp_follows_the_plugins_closed_loop():
     """The same RTI with the QP solved by the active-set iterations (from the shifted plan's
     active set) and by proxqp alone: the same closed loop to the plugin's tolerance."""
     env = gym.make("gp_envs/CartPoleSwingUp-v0", scenario="gp")
-    plain = PseudospectralMPC.from_env(env, scheme="rti", qp_solver="proxqp")
-    active = PseudospectralMPC.from_env(env, scheme="rti", qp_solver="active-set:proxqp")
+    plain = PseudospectralMPC.from_env(env, scheme=RTI(qp_solver="proxqp"))
+    active = PseudospectralMPC.from_env(env, scheme=RTI(qp_solver="active-set:proxqp"))
     a, b = (rollout(env, agent, 0, max_steps=60) for agent in (plain, active))
-    assert active.planner.n_rti_steps == 59
-    assert active.planner.n_qp_fallbacks < 10
-    assert active.planner.n_rti_rejected == plain.planner.n_rti_rejected
+    assert active.planner.counts.rti_steps == 59
+    assert active.planner.counts.qp_fallbacks < 10
+    assert active.planner.counts.rti_rejected == plain.planner.counts.rti_rejected
     assert b.cost == pytest.approx(a.cost, rel=1e-5)

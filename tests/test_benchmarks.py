@@ -236,7 +236,7 @@ def test_the_parametric_recipe_has_linear_features_on_the_sensitivities_only(
     residual's parameter-sensitivity inputs (by name), the saturated recipe's on every input."""
     env = make_env(env_name, scenario)
     agent = build_controller("ssgp-mpc-linearized-parametric", env, env_name, 0, n_init=60).agent
-    names = np.array(agent.residual.input_names)
+    names = np.array(agent.config.residual.model(agent.model).input_names)
     assert list(names[agent.learner.linear_mask_ == 1.0]) == [
         n for n in names if n.startswith("d(")]
     saturated = build_controller("ssgp-mpc-linearized-saturated", env, env_name, 0,

@@ -21,6 +21,11 @@ from gp_agents import (
 )
 from gp_agents.mpc.blackbox import KinematicOde, blackbox_model
 
+
+def residual_of(agent):
+    """The residual an agent's learner is fitted on (its settings on its current model)."""
+    return agent.config.residual.model(agent.model)
+
 PILCO = "gp_envs/PilcoCartPole-v0"
 
 
@@ -72,8 +77,8 @@ def test_blackbox_recipe_learns_the_whole_acceleration():
     assert agent.model.f(np.ones(4), np.ones(1))[2:].tolist() == [0.0, 0.0]
     # the learner's targets are the true accelerations (at the period's midpoint), not a
     # correction of the nominal ones
-    _, Y = agent.residual.targets(data.X, data.U, data.X_next)
-    mid = 0.5 * (data.X + agent.residual.unwrap_like(data.X_next, data.X))
+    _, Y = residual_of(agent).targets(data.X, data.U, data.X_next)
+    mid = 0.5 * (data.X + residual_of(agent).unwrap_like(data.X_next, data.X))
     true_acc = truth.f(mid, data.U)[:, 2:]
     err = np.abs(Y - true_acc).max(axis=0) / np.abs(true_acc).max(axis=0)
     assert np.all(err < 0.1), err
@@ -89,16 +94,17 @@ def test_pretrain_none_plans_with_the_model_alone_then_fits_on_the_first_transit
     nominal = make_mpc(env, "nominal")
     learner = make_mpc(env, "robust").pretrain(None)
     np.testing.assert_array_equal(learner.act(obs), nominal.act(obs))  # step 0: nominal plan
-    assert learner.n_learned == 0
+    assert getattr(learner.learner, "n_samples_seen_", 0) == 0
     with pytest.raises(RuntimeError, match="pretrain"):  # forgetting pretrain still raises
         make_mpc(env, "robust").act(obs)
     action = learner.act(obs)
     next_obs, *_ = env.step(action)
     learner.observe(obs, action, next_obs)
     learner.act(next_obs)  # learns the transition first: fitted on it
-    assert learner.learner.n_samples_seen_ == 1 and learner.n_learned == 1
-    assert learner.planner.planning.term is learner.term  # the learned term is in the plan
-    assert learner.n_solves == 3  # the first planner's solves are counted too
+    assert learner.learner.n_samples_seen_ == 1
+    # the learned term is in the plan now
+    assert type(learner.planner.planning.term) is type(learner.config.term)
+    assert learner.counts.solves == 3  # the first planner's solves are counted too
 
 
 def test_refit_until_refits_on_every_transition_as_their_number_doubles():
@@ -111,11 +117,11 @@ def test_refit_until_refits_on_every_transition_as_their_number_doubles():
     X = np.concatenate([data.X, episode.observations[:3]])
     Xn = np.concatenate([data.X_next, episode.observations[1:4]])
     U = np.concatenate([data.U, episode.actions[:3]])
-    Z, _ = agent.residual.targets(X, U, Xn)
+    Z, _ = residual_of(agent).targets(X, U, Xn)
     np.testing.assert_allclose(agent.learner.standardizer_.z_mean, Z.mean(axis=0))
     frozen = make_mpc(env, "paper").pretrain(data)
     rollout(env, frozen, 0, max_steps=5)
-    Z0, _ = frozen.residual.targets(data.X, data.U, data.X_next)
+    Z0, _ = residual_of(frozen).targets(data.X, data.U, data.X_next)
     np.testing.assert_allclose(frozen.learner.standardizer_.z_mean, Z0.mean(axis=0))
 
 

@@ -15,10 +15,32 @@ import gp_envs
 from gp_agents.agent import rollout
 from gp_agents.data import collect_initial_data
 from gp_agents.learners import IncrementalSSGP
-from gp_agents.mpc import Converged, GPInNLP, LinearizedGP, PseudospectralMPC, online_ssgp
+from gp_agents.mpc import (
+    RTI,
+    Constraints,
+    Converged,
+    Episodic,
+    GPInNLP,
+    LinearizedGP,
+    PseudospectralMPC,
+    RecedingHorizon,
+    Residual,
+    StepStatus,
+    online_ssgp,
+)
 from gp_agents.mpc.active_set import ActiveSetQP
 from gp_agents.mpc.gp_pattern import nominal_pattern
 from gp_agents.residual import ResidualModel
+
+
+def residual_of(agent):
+    """The residual an agent's learner is fitted on (its settings on its current model)."""
+    return agent.config.residual.model(agent.model)
+
+
+def mesh_of(agent):
+    """The mesh an agent plans on."""
+    return agent.config.schedule.mesh(agent.model.dt)
 
 CART = "gp_envs/CartPoleSwingUp-v0"
 QUAD = "gp_envs/Quadrotor-v0"
@@ -80,7 +102,7 @@ def test_planning_model_adds_the_learner_mean_on_the_accelerations():
     model = env.unwrapped.nominal_model
     agent = PseudospectralMPC.from_env(env, IncrementalSSGP(20, random_state=0))
     rng = np.random.default_rng(0)
-    Z = rng.normal(size=(60, agent.residual.n_inputs))
+    Z = rng.normal(size=(60, residual_of(agent).n_inputs))
     agent.learner.fit(Z, np.column_stack([np.sin(Z[:, 0]), np.cos(Z[:, 1])]))
     planning = agent._planner().planning
     assert agent.planner.ocp.problem.dynamics == planning.dynamics  # the formula the NLP uses
@@ -90,7 +112,7 @@ def test_planning_model_adds_the_learner_mean_on_the_accelerations():
     xs, us = np.array([0.1, 2.0, -0.3, 1.0]), np.array([3.0])
     got = np.asarray(fn(xs, us, planning.param_values())).ravel()
     expected = model.f(xs, us)
-    expected[[2, 3]] += agent.learner.predict(agent.residual.inputs(xs, us))[0]
+    expected[[2, 3]] += agent.learner.predict(residual_of(agent).inputs(xs, us))[0]
     np.testing.assert_allclose(got, expected, rtol=1e-10)
     # the nominal agent's planning model is the physics alone
     nominal = PseudospectralMPC.from_env(env)._planner().planning
@@ -123,14 +145,15 @@ def test_nominal_hessian_gives_the_exact_hessians_plan():
     agents = {}
     for hessian in ("exact", "nominal"):
         agent = PseudospectralMPC.from_env(env, online_ssgp(),
-                                           learned_dynamics=GPInNLP(hessian=hessian),
-                                           input_indices="model", warm_start_duals=True)
+                                           term=GPInNLP(hessian=hessian),
+                                           residual=Residual(inputs="model"),
+                                           scheme=Converged(warm_start_duals=True))
         agent.pretrain(data)
         obs, _ = env.reset(seed=0)
         agent.act(obs)
         assert agent.diagnostics[-1].success
         agents[hessian] = agent
-    assert agents["exact"].residual.n_inputs == 5
+    assert residual_of(agents["exact"]).n_inputs == 5
     nominal, ocp = agents["nominal"].plan.solution, agents["exact"].planner.ocp
     again = ocp.solve(p=agents["exact"].planner.planning.param_values(), x0=obs,
                       initial_guess=nominal, multipliers=(nominal.nlp_lam_x, nominal.nlp_lam_g))
@@ -182,7 +205,7 @@ def test_relinearized_plan_is_the_exact_plan():
     sol = exact.plan.solution
     assert sol.success
     lin = PseudospectralMPC.from_env(
-        env, exact.learner, learned_dynamics=LinearizedGP(max_linearizations=5, tol=1e-9))
+        env, exact.learner, term=LinearizedGP(max_linearizations=5, tol=1e-9))
     planner = lin._planner()
     plan, info = planner._solve(planner.planning.param_values(), obs, sol, cold=False)
     assert plan.success and info["solves"] >= 1
@@ -191,7 +214,7 @@ def test_relinearized_plan_is_the_exact_plan():
     assert info["linearization_error"] < 1.0
     # from a cold start (a straight-line guess) the first expansion is far off: the agent
     # re-linearizes about each iterate until the plan is within tolerance or solves run out
-    cold = PseudospectralMPC.from_env(env, exact.learner, learned_dynamics="linearized")
+    cold = PseudospectralMPC.from_env(env, exact.learner, term="linearized")
     cold.act(obs)
     first = cold.diagnostics[-1]
     assert first.success and 1 < first.solves <= mpc_module.COLD_START_LINEARIZATIONS
@@ -201,17 +224,18 @@ def test_linearized_nlp_has_no_learner_parameters_and_is_built_once():
     env = gym.make(DUBINS)
     data = collect_initial_data(env, 100, seed=0)
     obs, _ = env.reset(seed=0)
-    agent = PseudospectralMPC.from_env(env, online_ssgp(20), learned_dynamics="linearized",
-                                       uncertainty_radius=1.0).pretrain(data)
+    agent = PseudospectralMPC.from_env(env, online_ssgp(20), term="linearized",
+                                       constraints=Constraints(uncertainty_radius=1.0)
+                                       ).pretrain(data)
     for _ in range(3):
         action = agent.act(obs)
         nxt, *_ = env.step(action)
         agent.observe(obs, action, nxt)
         obs = nxt
-    assert agent.n_builds == 1
+    assert agent.counts.builds == 1
     problem = agent.planner.ocp.problem
     assert problem.n_params == len(agent.model.param_names)
-    d, cols = agent.residual.n_outputs, agent.residual.jacobian_columns
+    d, cols = residual_of(agent).n_outputs, residual_of(agent).jacobian_columns
     assert problem.n_node_params == d * (1 + len(cols)) + 2  # + frozen variances of x, y
     diag = agent.diagnostics_arrays()
     assert np.all(diag["solves"][1:] == 1)  # warm steps: one solve (max_linearizations=1)
@@ -226,30 +250,30 @@ def test_linearized_nlp_has_no_learner_parameters_and_is_built_once():
 
 
 def test_without_a_learned_term_converged_puts_the_gp_in_the_nlp_and_rti_the_systems_term():
-    """``learned_dynamics=None``: the paper's OCP (the GP inside the NLP) when converged; for
+    """``term=None``: the paper's OCP (the GP inside the NLP) when converged; for
     the real-time iterations the system's tuned term (``gp_agents.mpc.tuning``: the quadrotor
     has the pattern term, the others the full linearization); an explicit name wins;
     a registered name that is no learned term is a named error."""
     from gp_agents.mpc import PatternLinearizedGP, RTITuning, register_rti_tuning
-    from gp_agents.mpc.controller import default_learned_dynamics
+    from gp_agents.mpc.config import default_term
     from gp_agents.mpc.tuning import RTI_TUNING
 
     for env_id, rti_term in ((QUAD, PatternLinearizedGP), (CART, LinearizedGP),
                              (DUBINS, LinearizedGP)):
         env = gym.make(env_id)
-        assert type(PseudospectralMPC.from_env(env, online_ssgp(5)).term) is GPInNLP
+        assert type(PseudospectralMPC.from_env(env, online_ssgp(5)).config.term) is GPInNLP
         for scheme in ("rti", "rti-split"):
             agent = PseudospectralMPC.from_env(env, online_ssgp(5), scheme=scheme)
-            assert type(agent.term) is rti_term, (env_id, scheme)
+            assert type(agent.config.term) is rti_term, (env_id, scheme)
         explicit = PseudospectralMPC.from_env(env, online_ssgp(5), scheme="rti",
-                                              learned_dynamics="zero-order")
-        assert explicit.term.name == "zero-order"
-    assert default_learned_dynamics("rti", None) == "linearized"
-    assert default_learned_dynamics("converged", None) == "exact"
+                                              term="zero-order")
+        assert explicit.config.term.name == "zero-order"
+    assert default_term("rti", None) == "linearized"
+    assert default_term("converged", None) == "exact"
     register_rti_tuning("tuning-test", RTITuning(learned_term="taylor"))
     try:
         with pytest.raises(ValueError, match="learned_term 'taylor'"):
-            default_learned_dynamics("rti", "tuning-test")
+            default_term("rti", "tuning-test")
     finally:
         del RTI_TUNING["tuning-test"]
 
@@ -279,8 +303,8 @@ def test_bad_settings_raise():
     env = gym.make(CART)
     with pytest.raises(ValueError):
         PseudospectralMPC.from_env(env, horizon=-1.0)
-    with pytest.raises(ValueError):
-        PseudospectralMPC.from_env(env, mode="sometimes")
+    with pytest.raises(TypeError):
+        PseudospectralMPC.from_env(env, mode="episodic")  # the former flat keywords are gone
     with pytest.raises(TypeError):
         PseudospectralMPC.from_env(gym.make("CartPole-v1"))
 
@@ -291,15 +315,18 @@ def test_a_learned_model_too_large_to_plan_with_is_a_clear_error(monkeypatch):
 
     env = gym.make(CART)
     data = collect_initial_data(env, 40, seed=0)
-    small = PseudospectralMPC.from_env(env, ExactGP(), n_intervals=1).pretrain(data)
-    large = PseudospectralMPC.from_env(env, ExactGP(), n_intervals=3).pretrain(data)
+    small = PseudospectralMPC.from_env(env, ExactGP(), horizon=RecedingHorizon(n_intervals=1)
+                                       ).pretrain(data)
+    large = PseudospectralMPC.from_env(env, ExactGP(), horizon=RecedingHorizon(n_intervals=3)
+                                       ).pretrain(data)
     obs, _ = env.reset(seed=0)
     # the size proxy grows with the collocation nodes and with the GP's training points
-    size = small.term.model_size(small.mesh.n_collocation)
-    assert large.term.model_size(large.mesh.n_collocation) > 2.5 * size
-    more = PseudospectralMPC.from_env(env, ExactGP(), n_intervals=1).pretrain(
-        collect_initial_data(env, 80, seed=0))
-    assert 1.8 * size < more.term.model_size(more.mesh.n_collocation) < 2.2 * size
+    # (the agents' own attached terms, which know their learners)
+    size = small._term.model_size(mesh_of(small).n_collocation)
+    assert large._term.model_size(mesh_of(large).n_collocation) > 2.5 * size
+    more = PseudospectralMPC.from_env(env, ExactGP(), horizon=RecedingHorizon(n_intervals=1)
+                                      ).pretrain(collect_initial_data(env, 80, seed=0))
+    assert 1.8 * size < more._term.model_size(mesh_of(more).n_collocation) < 2.2 * size
     monkeypatch.setattr(gp_in_nlp_module, "MAX_LEARNED_MODEL_SIZE", 2 * size)
     assert small.act(obs) in env.action_space
     with pytest.raises(ValueError, match="too large to plan with"):
@@ -309,7 +336,7 @@ def test_a_learned_model_too_large_to_plan_with_is_a_clear_error(monkeypatch):
 def test_solver_is_built_once_and_learning_updates_parameters_only():
     env = gym.make(CART)
     agent = PseudospectralMPC.from_env(env, IncrementalSSGP(20, forgetting_factor=0.99),
-                                       replan_every=2)
+                                       horizon=RecedingHorizon(replan_every=2))
     agent.pretrain(collect_initial_data(env, 100, seed=0))
     obs, _ = env.reset(seed=0)
     for _ in range(10):
@@ -318,7 +345,7 @@ def test_solver_is_built_once_and_learning_updates_parameters_only():
         agent.observe(obs, a, nxt)
         obs = nxt
     d = agent.diagnostics_arrays()
-    assert agent.n_builds == 1
+    assert agent.counts.builds == 1
     # a plan is used for at most p = 2 periods (a failed solve is retried at the next step)
     replans = np.flatnonzero(d["replanned"])
     assert replans[0] == 0 and np.all(np.diff(replans) <= 2) and len(replans) >= 5
@@ -352,24 +379,24 @@ def test_failed_solves_fall_back_without_crashing():
     obs, _ = env.reset(seed=0)
     for _ in range(3):  # good plans first
         obs, *_ = env.step(agent.act(obs))
-    agent.scheme_settings = Converged(max_iterations=1)
+    agent.config = dataclasses.replace(agent.config, scheme=Converged(max_iterations=1))
     agent.planner = None  # rebuild with a solver that cannot converge
     for _ in range(3):
         action = agent.act(obs)
         assert env.action_space.contains(action)
         obs, *_ = env.step(action)
-    assert agent.n_failures == 3 and agent.n_fallbacks == 3
-    assert agent.n_capped == 6  # each failed solve and its retry hit the iteration cap
+    assert agent.counts.failures == 3 and agent.counts.fallbacks == 3
+    assert agent.counts.capped == 6  # each failed solve and its retry hit the iteration cap
 
 
 def test_episodic_mode_plans_once():
     env = gym.make(CART)
-    agent = PseudospectralMPC.from_env(env, mode="episodic", **oracle(env))
+    agent = PseudospectralMPC.from_env(env, horizon=Episodic(), **oracle(env))
     obs, _ = env.reset(seed=0)
     for _ in range(5):
         obs, *_ = env.step(agent.act(obs))
-    assert agent.n_solves == 1 and agent.horizon == pytest.approx(6.0)
-    assert agent.mesh.describe() == "120 held periods x 3 nodes"
+    assert agent.counts.solves == 1 and agent.config.schedule.horizon == pytest.approx(6.0)
+    assert mesh_of(agent).describe() == "120 held periods x 3 nodes"
     actions = agent.diagnostics_arrays()["action"][:, 0]
     u = agent.plan.solution.u[:, 0].reshape(120, 3)
     np.testing.assert_array_equal(actions, u[:5, 0].astype(np.float32))
@@ -381,7 +408,7 @@ def test_episodic_oracle_plan_is_what_the_quadrotor_plant_does():
     keeps the attitude inside the box at every boundary."""
     env = gym.make(QUAD, scenario="gp")
     obs, _ = env.reset(seed=0)
-    agent = PseudospectralMPC.from_env(env, mode="episodic", **oracle(env))
+    agent = PseudospectralMPC.from_env(env, horizon=Episodic(), **oracle(env))
     agent.act(obs)
     plan, truth = agent.plan, gp_envs.oracle_model(env)
     assert plan.solution.success
@@ -404,7 +431,7 @@ def test_agent_follows_a_redrawn_nominal_model_without_rebuilding():
         agent.act(obs)
         seen.append(agent.model.params["b1"])
         assert agent.model is env.unwrapped.nominal_model
-    assert seen[0] != seen[1] and agent.n_builds == 1
+    assert seen[0] != seen[1] and agent.counts.builds == 1
 
 
 # ------------------------------------------------------------------------ closed loop
@@ -463,7 +490,7 @@ def test_learner_trained_against_one_nominal_model_is_not_silently_reused_with_a
     data = collect_initial_data(env, 60, seed=0)
     obs, _ = env.reset(seed=0)
     agent = PseudospectralMPC.from_env(env, IncrementalSSGP(10)).pretrain(data)
-    assert agent.residual.model is env.unwrapped.nominal_model  # targets use the current one
+    assert residual_of(agent).model is env.unwrapped.nominal_model  # targets use the current one
     agent.act(obs)
     obs, _ = env.reset(seed=1)  # redraws the nominal model
     with pytest.raises(RuntimeError, match="pretrain"):
@@ -478,7 +505,7 @@ def test_a_kkt_point_is_a_fixed_point_of_the_rti_step(mu):
     change that."""
     env = gym.make(CART, scenario="gp")
     obs, _ = env.reset(seed=0)
-    agent = PseudospectralMPC.from_env(env, scheme="rti", levenberg_marquardt=mu)
+    agent = PseudospectralMPC.from_env(env, scheme=RTI(levenberg_marquardt=mu))
     agent.act(obs)  # the cold start: a converged solve
     sol, planner = agent.plan.solution, agent.planner
     assert sol.success and sol.status == "Solve_Succeeded"
@@ -494,8 +521,8 @@ def test_the_levenberg_marquardt_term_is_mu_on_the_rti_hessians_diagonal():
     planner, and a negative or non-finite ``mu`` is refused."""
     env = gym.make(DUBINS)
     env.reset(seed=0)
-    plain = PseudospectralMPC.from_env(env, scheme="rti", levenberg_marquardt=0.0)._planner()
-    damped = PseudospectralMPC.from_env(env, scheme="rti", levenberg_marquardt=0.25)._planner()
+    plain = PseudospectralMPC.from_env(env, scheme=RTI(levenberg_marquardt=0.0))._planner()
+    damped = PseudospectralMPC.from_env(env, scheme=RTI(levenberg_marquardt=0.25))._planner()
     w = np.random.default_rng(0).normal(size=plain.ocp.n_variables)
     p = plain.planning.param_values()
     H0, H1 = (np.asarray(ca.DM(pl._derivatives(w, p)[3])) for pl in (plain, damped))
@@ -507,7 +534,7 @@ def test_the_levenberg_marquardt_term_is_mu_on_the_rti_hessians_diagonal():
         .levenberg_marquardt == default
     for bad in (-1e-3, float("nan"), float("inf")):
         with pytest.raises(ValueError, match="levenberg_marquardt"):
-            PseudospectralMPC.from_env(env, scheme="rti", levenberg_marquardt=bad)
+            PseudospectralMPC.from_env(env, scheme=RTI(levenberg_marquardt=bad))
 
 
 @pytest.mark.parametrize("term", ["linearized", "linearized-pattern", "zero-order"])
@@ -525,7 +552,7 @@ def test_the_exact_ocps_kkt_point_is_a_fixed_point_of_the_learned_rti_step(term)
     exact.act(obs)
     sol = exact.plan.solution
     assert sol.success
-    agent = PseudospectralMPC.from_env(env, exact.learner, learned_dynamics=term,
+    agent = PseudospectralMPC.from_env(env, exact.learner, term=term,
                                        scheme="rti")
     planner = agent._planner()
     w, lam, violation = planner.iterate(obs, sol.nlp_x, sol.nlp_lam_g)
@@ -548,7 +575,7 @@ def test_zero_order_and_pattern_rti_keep_the_nominal_qp_structure_and_swing_up()
         learner = None if term == "none" else online_ssgp(20)
         agent = PseudospectralMPC.from_env(env, learner, scheme="rti",
                                            **({} if learner is None else
-                                              {"learned_dynamics": term}))
+                                              {"term": term}))
         if learner is not None:
             agent.pretrain(data)
         ep = rollout(env, agent, 0)
@@ -561,7 +588,7 @@ def test_zero_order_and_pattern_rti_keep_the_nominal_qp_structure_and_swing_up()
     for term in ("zero-order", "linearized-pattern"):
         ep, _, agent = plans[term]
         assert ep.success and ep.cost == pytest.approx(lin.cost, rel=0.01)
-        assert agent.planner.n_rti_steps > 100
+        assert agent.planner.counts.rti_steps > 100
 
 
 def test_the_nominal_pattern_is_the_dubins_kinematics():
@@ -582,7 +609,7 @@ def test_the_split_rtis_feedback_at_the_predicted_state_is_the_one_call_step(ter
     feedback's plan starts at that state."""
     env = gym.make(CART, scenario="gp")
     learner = None if term == "none" else online_ssgp(10)
-    kwargs = {} if learner is None else {"learned_dynamics": term}
+    kwargs = {} if learner is None else {"term": term}
     agent = PseudospectralMPC.from_env(env, learner, scheme="rti-split", **kwargs)
     if learner is not None:
         agent.pretrain(collect_initial_data(env, 60, seed=0))
@@ -594,7 +621,7 @@ def test_the_split_rtis_feedback_at_the_predicted_state_is_the_one_call_step(ter
     # the one-call RTI on the same episode's nominal model and the same fitted learner
     reference = PseudospectralMPC.from_env(env, agent.learner, scheme="rti",
                                            **kwargs)._planner()
-    step = previous.step + agent.mesh.held_periods
+    step = previous.step + mesh_of(agent).held_periods
     planner.prepare(previous, step)
     prep = planner._prepared
     x_pred = prep["w_s"][:obs.size].copy()
@@ -612,7 +639,7 @@ def test_the_split_rtis_feedback_at_the_predicted_state_is_the_one_call_step(ter
         np.testing.assert_allclose(a, b, rtol=1e-8, atol=1e-9)
     x = x_pred + 0.01
     plan, _ = planner.plan(x, previous, step)
-    assert planner.n_prepared == 29 + 1  # steps 1-29 and this one
+    assert planner.counts.prepared == 29 + 1  # steps 1-29 and this one
     np.testing.assert_allclose(plan.solution.x[0], x, atol=1e-10)
 
 
@@ -654,7 +681,7 @@ def test_split_rti_closed_loop_records_latency_and_preparation():
     split = rollout(env, agent, 0)
     d = agent.diagnostics_arrays()
     assert split.success and split.cost == pytest.approx(reference.cost, rel=0.01)
-    assert agent.planner.n_prepared > 100 and agent.planner.n_unprepared < 5
+    assert agent.planner.counts.prepared > 100 and agent.planner.counts.unprepared < 5
     assert np.all(d["preparation_time"][1:] > 0) and d["preparation_time"][0] > 0
     assert np.all(d["preparation_time"] < d["act_time"])
 
@@ -666,7 +693,7 @@ def test_rti_tracks_the_converged_mpc_and_its_safety_net_falls_back_to_it():
     rti = rollout(env, agent, 0)
     d = agent.diagnostics_arrays()
     steps = d["status"] == "RTI"
-    assert rti.success and steps.sum() > 100 and agent.planner.n_rti_rejected < 15
+    assert rti.success and steps.sum() > 100 and agent.planner.counts.rti_rejected < 15
     assert np.all(d["iterations"][steps] == 1)
     assert rti.cost == pytest.approx(converged.cost, rel=0.02)
     # every step rejected (a tolerance no step meets): the converged solve from the same
@@ -674,7 +701,7 @@ def test_rti_tracks_the_converged_mpc_and_its_safety_net_falls_back_to_it():
     strict = PseudospectralMPC.from_env(env, scheme="rti")
     strict._planner().max_violation = -1.0
     fallback = rollout(env, strict, 0)
-    assert strict.planner.n_rti_rejected == strict.planner.n_rti_steps == 119
+    assert strict.planner.counts.rti_rejected == strict.planner.counts.rti_steps == 119
     assert fallback.cost == pytest.approx(converged.cost, rel=1e-3)
     with pytest.raises(ValueError, match="scheme must be one of"):
         PseudospectralMPC.from_env(env, scheme="sometimes")
@@ -695,13 +722,14 @@ def test_the_rti_steps_compiled_expansion_is_the_numeric_one(term_name, kappa):
     # the recovery's, tested below)
     agent = PseudospectralMPC.from_env(env, online_ssgp(10),
                                        scheme=mpc_module.RTI(recovery_iterations=0),
-                                       learned_dynamics=term_name, uncertainty_radius=kappa)
+                                       term=term_name,
+                                       constraints=Constraints(uncertainty_radius=kappa))
     agent.pretrain(collect_initial_data(env, 60, seed=0))
     obs, _ = env.reset(seed=0)
     accepted = 0
     for k in range(40):
         if k >= 2:  # compare at the steps the RTI accepts
-            agent._flush_learning()
+            agent._learn()
             planner, term = agent.planner, agent.planner.planning.term
             previous, p = agent.plan, planner.planning.param_values()
             ws = np.asarray(planner._shift(previous.solution.nlp_x, obs)).ravel()
@@ -744,7 +772,7 @@ def test_the_pattern_terms_gap_from_the_expansion_is_the_ads(learner):
     model = (online_ssgp(10) if learner == "ssgp"
              else online_ssgp(10, linear_features=True, input_saturation=30.0))
     agent = PseudospectralMPC.from_env(env, model, scheme="rti",
-                                       learned_dynamics="linearized-pattern")
+                                       term="linearized-pattern")
     agent.pretrain(collect_initial_data(env, 60, seed=0))
     obs, _ = env.reset(seed=0)
     agent.act(obs)
@@ -779,9 +807,9 @@ def test_a_qp_plugin_that_raises_is_a_rejected_step_not_a_crash():
 
     planner._step = raising
     action = agent.act(obs)
-    assert planner.n_rti_rejected == planner.n_rti_steps == 1
+    assert planner.counts.rti_rejected == planner.counts.rti_steps == 1
     assert np.all(np.isfinite(action))
-    assert agent.diagnostics_arrays()["status"][-1].startswith("RTI rejected (inf)")
+    assert agent.diagnostics_arrays()["status"][-1] == StepStatus.RTI_REJECTED
 
 
 def test_warm_started_multipliers_cut_ipopt_iterations_at_the_same_closed_loop():
@@ -789,14 +817,14 @@ def test_warm_started_multipliers_cut_ipopt_iterations_at_the_same_closed_loop()
     with IPOPT's warm-start options (the RTI's fallback does so by default)."""
     env = gym.make(CART, scenario="gp")
     cold = PseudospectralMPC.from_env(env)
-    warm = PseudospectralMPC.from_env(env, warm_start_duals=True)
+    warm = PseudospectralMPC.from_env(env, scheme=Converged(warm_start_duals=True))
     episodes = [rollout(env, agent, 0, max_steps=40) for agent in (cold, warm)]
     assert not cold.planner.warm_start_duals and warm.planner.warm_start_duals
     assert PseudospectralMPC.from_env(env, scheme="rti")._planner().warm_start_duals
     iterations = [np.median(a.diagnostics_arrays()["iterations"][1:]) for a in (cold, warm)]
     assert iterations[1] < iterations[0]
     assert episodes[1].cost == pytest.approx(episodes[0].cost, rel=0.05)
-    assert warm.n_failures == cold.n_failures == 0
+    assert warm.counts.failures == cold.counts.failures == 0
 
 
 # ------------------------------------------------------------------------ copies
@@ -807,7 +835,7 @@ def test_a_pickled_agent_acts_identically_after_loading(scheme):
 
     env = gym.make(CART, scenario="online")
     agent = PseudospectralMPC.from_env(env, online_ssgp(20), scheme=scheme,
-                                       learned_dynamics="linearized")
+                                       term="linearized")
     agent.pretrain(collect_initial_data(env, 100, seed=0))
     obs, _ = env.reset(seed=0)
     for _ in range(5):
@@ -829,7 +857,7 @@ def test_a_pickled_agent_acts_identically_after_loading(scheme):
             actions.append(u)
         runs.append(np.array(actions))
     np.testing.assert_array_equal(runs[0], runs[1])
-    assert clone.n_builds == agent.n_builds + 1
+    assert clone.counts.builds == agent.counts.builds + 1
     if scheme == "rti":  # the clone's plan warm-starts its rebuilt NLP's real-time iteration
         assert all(r.status.startswith("RTI") for r in clone.diagnostics[-8:])
 
@@ -921,9 +949,10 @@ def _perturbed_rti_step(budget: int, scale: float = 0.05, patch=None):
     x1 = w_prev[:obs.size].copy()
     if patch is not None:
         patch(planner)
-    before = (planner.n_rti_recovered, planner.n_rti_rejected, planner.n_recovery_iterations)
+    c = planner.counts
+    before = (c.rti_recovered, c.rti_rejected, c.recovery_iterations)
     plan, record = planner.plan(x1, previous, previous.step + planner.mesh.held_periods)
-    after = (planner.n_rti_recovered, planner.n_rti_rejected, planner.n_recovery_iterations)
+    after = (c.rti_recovered, c.rti_rejected, c.recovery_iterations)
     counts = dict(zip(("recovered", "rejected", "iterations"),
                       (b - a for a, b in zip(before, after, strict=True)), strict=True))
     return plan, record, planner, counts, x1
@@ -964,8 +993,8 @@ def test_a_feasible_point_that_no_sqp_iteration_preceded_is_rejected_not_recover
 
     _, record, planner, counts, _ = _perturbed_rti_step(1, patch=patch)
     assert len(projected) == 1 and projected[0] <= planner.max_violation
-    assert record["status"].startswith("RTI rejected"), record["status"]
+    assert record["status"] == StepStatus.RTI_REJECTED, record["status"]
     assert counts == {"recovered": 0, "rejected": 1, "iterations": 0}
     _, record, _, counts, _ = _perturbed_rti_step(2)
-    assert record["status"] == "RTI recovered (2)", record["status"]
+    assert record["status"] == StepStatus.RTI_RECOVERED and record["iterations"] == 3, record
     assert counts == {"recovered": 1, "rejected": 0, "iterations": 2}

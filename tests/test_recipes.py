@@ -29,8 +29,18 @@ from gp_agents import (
     parametric_ssgp,
     rollout,
 )
-from gp_agents.mpc import GPInNLP, LinearizedGP, PatternLinearizedGP
+from gp_agents.mpc import GPInNLP, LinearizedGP, MPCConfig, PatternLinearizedGP
 from gp_agents.residual import ResidualModel
+
+
+def residual_of(agent):
+    """The residual an agent's learner is fitted on (its settings on its current model)."""
+    return agent.config.residual.model(agent.model)
+
+
+def mesh_of(agent):
+    """The mesh an agent plans on."""
+    return agent.config.schedule.mesh(agent.model.dt)
 
 
 def _env(name: str = "cartpole", **kwargs) -> gym.Env:
@@ -42,12 +52,12 @@ def test_make_mpc_default_is_the_robust_recipe_with_its_own_columns():
     env = _env(scenario="online")
     agent = make_mpc(env)
     assert set(RECIPES) >= {"robust", "paper", "nominal", "oracle"}
-    assert isinstance(agent.term, LinearizedGP) and agent.scheme == "converged"
-    assert agent.residual_settings.sensitivities
+    assert isinstance(agent.config.term, LinearizedGP) and agent.config.scheme.name == "converged"
+    assert agent.config.residual.sensitivities
     # the learner's linear features sit on exactly this agent's sensitivity columns
-    assert tuple(agent.learner.linear_features) == agent.residual.sensitivity_columns
-    names = agent.residual.input_names
-    assert all(names[c].startswith("d") for c in agent.residual.sensitivity_columns), names
+    assert tuple(agent.learner.linear_features) == residual_of(agent).sensitivity_columns
+    names = residual_of(agent).input_names
+    assert all(names[c].startswith("d") for c in residual_of(agent).sensitivity_columns), names
 
 
 @pytest.mark.parametrize("system", ["cartpole", "dubins"])
@@ -57,9 +67,8 @@ def test_robust_recipe_acts_as_the_hand_built_parametric_recipe(system):
     data = collect_initial_data(env, 60, seed=3)
     obs, _ = env.reset(seed=3)
     columns = ResidualModel(env.unwrapped.nominal_model, sensitivities=True).sensitivity_columns
-    with pytest.warns(DeprecationWarning, match="sensitivities"):
-        old = PseudospectralMPC.from_env(env, parametric_ssgp(columns), sensitivities=True,
-                                         learned_dynamics="linearized")
+    old = PseudospectralMPC.from_env(env, parametric_ssgp(columns),
+                                     residual=Residual(sensitivities=True), term="linearized")
     new = make_mpc(env)
     actions = []
     for agent in (old.pretrain(data), new.pretrain(data)):
@@ -72,10 +81,11 @@ def test_recipes_and_schemes_compose():
     env = _env("quadrotor")
     rti = make_mpc(env, "robust", scheme="rti-split")
     # the RTI takes the system's tuned learned term (the quadrotor's: the Jacobian pattern)
-    assert rti.scheme == "rti-split" and isinstance(rti.term, PatternLinearizedGP)
-    assert rti.qp_solver == "active-set:proxqp"
+    assert rti.config.scheme.name == "rti-split"
+    assert isinstance(rti.config.term, PatternLinearizedGP)
+    assert rti.config.scheme.qp_solver == "active-set:proxqp"
     paper = make_mpc(env, "paper")
-    assert isinstance(paper.term, GPInNLP) and not paper.residual_settings.sensitivities
+    assert isinstance(paper.config.term, GPInNLP) and not paper.config.residual.sensitivities
     assert make_mpc(env, "nominal").learner is None
     oracle = make_mpc(env, "oracle")
     env.reset(seed=0)
@@ -89,48 +99,46 @@ def test_recipes_and_schemes_compose():
         make_mpc(gym.make("Pendulum-v1"))
 
 
-def test_a_recipe_takes_its_own_levenberg_marquardt_where_the_system_tunes_one():
-    """The Dubins tuning damps the robust recipe's RTI QP more than the other recipes'
-    (``RTITuning.recipe_levenberg_marquardt``); an explicit ``RTI(levenberg_marquardt=...)``
-    or the flat keyword wins; the converged scheme has none; a system without a recipe entry
-    gives every recipe the system's value."""
+def test_a_recipe_takes_its_own_levenberg_marquardt_where_it_sets_one():
+    """The robust recipe damps its Dubins RTI QP more than the system's tuning does for the
+    other recipes (its own ``RECIPE_RTI`` entry); an explicit ``RTI(levenberg_marquardt=...)``
+    wins; the converged scheme has none; a system without a recipe entry gives every recipe
+    the system's value."""
     from gp_agents.mpc import rti_tuning
+    from gp_agents.mpc.recipes import RECIPE_RTI
 
     tuning = rti_tuning("dubins")
     env = _env("dubins")
-    mu = tuning.recipe_levenberg_marquardt["robust"]
+    mu = RECIPE_RTI["robust"]["dubins"]["levenberg_marquardt"]
     assert mu != tuning.levenberg_marquardt
     for scheme in ("rti", "rti-split", RTI(split=True)):
-        assert make_mpc(env, "robust", scheme=scheme).levenberg_marquardt == mu
-        assert make_mpc(env, "paper", scheme=scheme).levenberg_marquardt \
+        assert make_mpc(env, "robust", scheme=scheme).config.scheme.levenberg_marquardt == mu
+        assert make_mpc(env, "paper", scheme=scheme).config.scheme.levenberg_marquardt \
             == tuning.levenberg_marquardt
     assert make_mpc(env, "robust", scheme=RTI(levenberg_marquardt=0.5)) \
-        .levenberg_marquardt == 0.5
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", DeprecationWarning)
-        assert make_mpc(env, "robust", scheme="rti", levenberg_marquardt=0.25) \
-            .levenberg_marquardt == 0.25
-    assert make_mpc(env, "robust").levenberg_marquardt is None
+        .config.scheme.levenberg_marquardt == 0.5
+    assert isinstance(make_mpc(env, "robust").config.scheme, Converged)
     cart = _env("cartpole")
-    assert not rti_tuning("cartpole").recipe_levenberg_marquardt
-    assert make_mpc(cart, "robust", scheme="rti").levenberg_marquardt \
+    assert "cartpole" not in RECIPE_RTI["robust"]
+    assert make_mpc(cart, "robust", scheme="rti").config.scheme.levenberg_marquardt \
         == rti_tuning("cartpole").levenberg_marquardt
 
 
-
-def test_a_recipe_takes_its_own_recovery_budget_where_the_system_tunes_one():
-    """On the Dubins vehicle only the robust recipe's RTI recovers rejected steps
-    (``RTITuning.recipe_recovery_iterations``), as the built controller resolved it; an explicit
-    ``RTI(recovery_iterations=...)`` wins, and a recipe ``mu`` does not disturb the budget."""
+def test_a_recipe_takes_its_own_recovery_budget_where_it_sets_one():
+    """On the Dubins vehicle only the robust recipe's RTI recovers rejected steps (its
+    ``RECIPE_RTI`` entry), as the built controller resolved it; an explicit
+    ``RTI(recovery_iterations=...)`` wins, a recipe ``mu`` does not disturb the budget, and
+    the former flat keywords are refused."""
     from gp_agents.mpc import rti_tuning
+    from gp_agents.mpc.recipes import RECIPE_RTI
 
     tuning = rti_tuning("dubins")
     env = _env("dubins")
-    budget = tuning.recipe_recovery_iterations["robust"]
+    budget = RECIPE_RTI["robust"]["dubins"]["recovery_iterations"]
     assert budget > 0 == tuning.recovery_iterations
 
     def planned(agent: PseudospectralMPC) -> int:
-        settings = agent.scheme_settings
+        settings = agent.config.scheme
         assert isinstance(settings, RTI) and settings.recovery_iterations is not None
         return settings.recovery_iterations
 
@@ -140,40 +148,29 @@ def test_a_recipe_takes_its_own_recovery_budget_where_the_system_tunes_one():
             assert planned(make_mpc(env, recipe, scheme=scheme)) == 0, recipe
     assert planned(make_mpc(env, "robust", scheme=RTI(recovery_iterations=1))) == 1
     robust = make_mpc(env, "robust", scheme=RTI(levenberg_marquardt=0.5))
-    assert planned(robust) == budget and robust.levenberg_marquardt == 0.5
-    # the deprecated flat keywords change only what they name, the recipe's entries stay
-    with pytest.warns(DeprecationWarning):
-        legacy = make_mpc(env, "robust", scheme="rti-split", qp_solver="osqp")
-    assert (planned(legacy), legacy.levenberg_marquardt, legacy.qp_solver) == (
-        budget, tuning.recipe_levenberg_marquardt["robust"], "osqp")
-    assert legacy.scheme == "rti-split"
-    with pytest.warns(DeprecationWarning):
-        legacy = make_mpc(env, "robust", scheme="rti", levenberg_marquardt=0.25)
-    assert (planned(legacy), legacy.levenberg_marquardt) == (budget, 0.25)
-    with pytest.raises(TypeError, match="both given"):
-        make_mpc(env, "robust", scheme=RTI(), qp_solver="osqp")
+    assert planned(robust) == budget and robust.config.scheme.levenberg_marquardt == 0.5
+    osqp = make_mpc(env, "robust", scheme=RTI(split=True, qp_solver="osqp"))
+    assert (planned(osqp), osqp.config.scheme.levenberg_marquardt,
+            osqp.config.scheme.qp_solver) == (budget, RECIPE_RTI["robust"]["dubins"]
+                                              ["levenberg_marquardt"], "osqp")
+    for flat in ({"qp_solver": "osqp"}, {"levenberg_marquardt": 0.25}, {"n_nodes": 8}):
+        with pytest.raises(TypeError, match="unexpected keyword"):
+            make_mpc(env, "robust", scheme="rti", **flat)
     cart = _env("cartpole")
-    assert not rti_tuning("cartpole").recipe_recovery_iterations
     assert planned(make_mpc(cart, "nominal", scheme="rti")) \
         == rti_tuning("cartpole").recovery_iterations > 0
 
 
-def test_a_recipe_entry_of_the_rti_tuning_must_name_a_recipe():
-    """A misspelt recipe in a system's per-recipe RTI tuning raises at the RTI's build
-    instead of being ignored; the converged scheme does not read it."""
-    from gp_agents.mpc import register_rti_tuning, rti_tuning
+def test_the_recipes_own_rti_entries_name_recipes_and_rti_settings():
+    """Every per-recipe RTI entry names a recipe and fields of ``RTI`` that take its values
+    (a misspelt one would otherwise be ignored)."""
+    from gp_agents.mpc.recipes import RECIPE_RTI
 
-    base = rti_tuning("pendulum")
-    register_rti_tuning("pendulum", dataclasses.replace(
-        base, recipe_recovery_iterations={"robsut": 1}))
-    try:
-        env = _env("pendulum")
-        with pytest.raises(ValueError, match="robsut"):
-            make_mpc(env, "robust", scheme="rti")
-        assert make_mpc(env, "robust").levenberg_marquardt is None
-    finally:
-        register_rti_tuning("pendulum", base)
-    assert rti_tuning("pendulum") == base
+    assert set(RECIPE_RTI) <= set(RECIPES)
+    for recipe, systems in RECIPE_RTI.items():
+        for system, values in systems.items():
+            assert system in gp_envs.SYSTEMS, (recipe, system)
+            RTI(**values)  # raises for an unknown field or a bad value
 
 
 # ----------------------------------------------------------------------------- settings
@@ -200,13 +197,13 @@ def _probe(agent: PseudospectralMPC) -> dict:
     return {
         "actions": np.round(episode.actions, 9).tolist(),
         "status": [str(s) for s in d["status"]], "iterations": d["iterations"].tolist(),
-        "mesh": agent.mesh.describe(), "planner": type(planner).__name__,
+        "mesh": mesh_of(agent).describe(), "planner": type(planner).__name__,
         "qp": repr(getattr(planner, "qp_solver", None)),
         "mu": getattr(planner, "levenberg_marquardt", None),
         "recovery": getattr(planner, "recovery_iterations", None),
         "warm_duals": planner.warm_start_duals, "solver": planner.ocp.solver_name,
-        "jit": planner.ocp.jit, "inputs": agent.residual.input_names,
-        "outputs": agent.residual.uncertain_indices, "term": type(agent.term).__name__,
+        "jit": planner.ocp.jit, "inputs": residual_of(agent).input_names,
+        "outputs": residual_of(agent).uncertain_indices, "term": type(agent.config.term).__name__,
         "samples": d["learner_samples"].tolist(),
         "cost": [round(float(problem.running_cost(x, u0, p)), 9) for x in probes],
         "bounds": (problem.x_lb.tolist(), problem.x_ub.tolist()),
@@ -257,6 +254,26 @@ _SETTINGS = {
                                 {"scheme": RTI(recovery_iterations=0)}),
     "RTI.fallback": ("pendulum", False, {"scheme": RTI()},
                      {"scheme": RTI(fallback=Converged(max_iterations=2))}),
+    # the converged settings as the RTI's fallback (the cold start and rejected steps)
+    "RTI.fallback.solver": ("pendulum", False, {"scheme": RTI()},
+                            {"scheme": RTI(fallback=Converged(solver="sqpmethod"))}),
+    "RTI.fallback.solver_options": ("pendulum", False, {"scheme": RTI()}, {"scheme": RTI(
+        fallback=Converged(warm_start_duals=True, solver_options={"ipopt": {"tol": 1e-1}}))}),
+    "RTI.fallback.max_iterations": ("pendulum", False, {"scheme": RTI()}, {"scheme": RTI(
+        fallback=Converged(warm_start_duals=True, max_iterations=2))}),
+    "RTI.fallback.warm_start_duals": ("pendulum", False, {"scheme": RTI()},
+                                      {"scheme": RTI(fallback=Converged())}),
+    # the RTI's settings in the split scheme
+    "RTI.qp_solver[split]": ("pendulum", False, {"scheme": RTI(split=True)},
+                             {"scheme": RTI(split=True, qp_solver="osqp")}),
+    "RTI.levenberg_marquardt[split]": ("pendulum", False, {"scheme": RTI(split=True)},
+                                       {"scheme": RTI(split=True, levenberg_marquardt=0.5)}),
+    "RTI.recovery_iterations[split]": ("pendulum", False, {"scheme": RTI(split=True)},
+                                       {"scheme": RTI(split=True, recovery_iterations=0)}),
+    # another NLP plugin's own options (its iteration cap among them)
+    "Converged.solver_options[sqpmethod]": (
+        "pendulum", False, {"scheme": Converged(solver="sqpmethod")},
+        {"scheme": Converged(solver="sqpmethod", solver_options={"max_iter": 1})}),
     "term": ("pendulum", True, {}, {"term": "linearized"}),
     "Residual.uncertain": ("pendulum", True, {}, {"residual": Residual(uncertain=(0, 1))}),
     "Residual.inputs": ("pendulum", True, {}, {"residual": Residual(inputs=(1,))}),
@@ -286,7 +303,17 @@ def _fields() -> set[str]:
 
 
 def test_every_setting_is_covered():
-    assert _fields() - {"Converged.jit"} == set(_SETTINGS)
+    """Every field of every settings object, and each converged setting as the RTI's fallback
+    and each RTI setting in the split scheme too (the qualified keys name their field)."""
+    keys = {k.split("[")[0] for k in _SETTINGS}
+    fields = _fields() - {"Converged.jit"}
+    assert fields <= keys
+    assert {f"RTI.fallback.{f.split('.')[1]}" for f in fields if f.startswith("Converged.")} \
+        <= keys
+    assert {f"{f}[split]" for f in fields if f.startswith("RTI.")} - {
+        "RTI.split[split]", "RTI.fallback[split]"} <= set(_SETTINGS)
+    assert keys - fields <= {f"RTI.fallback.{f.split('.')[1]}" for f in _fields()
+                             if f.startswith("Converged.")}
 
 
 @pytest.mark.parametrize("name", sorted(_SETTINGS))
@@ -329,19 +356,76 @@ def test_jit_reaches_the_solver_build(monkeypatch):
      "no obstacles"),
     ("dubins", False, {"constraints": Constraints(uncertainty_radius=1.0)}, ValueError,
      "needs a learner"),
-    ("pendulum", False, {"scheme": RTI(), "qp_solver": "osqp"}, TypeError, "both given"),
-    ("pendulum", False, {"qp_solver": "osqp"}, ValueError, "do not apply to scheme='converged'"),
-    ("pendulum", False, {"mode": "episodic", "replan_every": 2}, ValueError,
-     "do not apply to an episodic"),
+    ("pendulum", False, {"scheme": RTI(), "qp_solver": "osqp"}, TypeError, "unexpected keyword"),
+    ("pendulum", False, {"mode": "episodic"}, TypeError, "unexpected keyword"),
+    ("pendulum", False, {"constraints": Constraints(state_margin=0.0, state_penalty=1.0)},
+     ValueError, "nothing to act on"),
+    ("pendulum", False, {"config": MPCConfig(), "scheme": "rti"}, TypeError, "not both"),
     ("pendulum", False, {"scheme": "fast"}, ValueError, "scheme must be one of"),
     ("pendulum", False, {"foo": 1}, TypeError, "unexpected keyword"),
 ])
 def test_settings_that_do_not_apply_raise(system, learner, settings, error, match):
     env = _env(system)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", DeprecationWarning)
-        with pytest.raises(error, match=match):
-            PseudospectralMPC.from_env(env, online_ssgp() if learner else None, **settings)
+    with pytest.raises(error, match=match):
+        PseudospectralMPC.from_env(env, online_ssgp() if learner else None, **settings)
+
+
+def test_the_formerly_ignored_settings_raise():
+    """An iteration cap IPOPT's ``max_iterations`` cannot set on another plugin, IPOPT's cap
+    given twice, and a state penalty with no soft band to act on (no obstacles, no margin) were
+    once accepted and changed nothing; now each is an error."""
+    with pytest.raises(ValueError, match=r"max_iterations is IPOPT's"):
+        Converged(solver="sqpmethod", max_iterations=1)
+    with pytest.raises(ValueError, match=r"max_iterations=\.\.\., not"):
+        Converged(solver_options={"ipopt": {"max_iter": 3}})
+    with pytest.raises(ValueError, match="nothing to act on"):
+        PseudospectralMPC.from_env(_env("cartpole"), constraints=Constraints(
+            state_margin=0.0, state_penalty=1e6))
+    # where they apply, they are accepted: a margin, or the obstacle's soft margin
+    PseudospectralMPC.from_env(_env("cartpole"), constraints=Constraints(state_penalty=1e6))
+    PseudospectralMPC.from_env(_env("dubins"), constraints=Constraints(
+        state_margin=0.0, state_penalty=1e6))
+
+
+def test_a_config_is_resolved_once_and_given_whole_or_by_fields():
+    """``MPCConfig.resolve`` fills every default for the model (the agent keeps it frozen);
+    the same settings given whole or as keywords make equal configurations, and resolving a
+    resolved one again changes nothing."""
+    env = _env("dubins")
+    model = env.unwrapped.nominal_model
+    config = MPCConfig(scheme="rti-split", horizon=2.0)
+    assert not config.resolved and config.scheme.qp_solver is None
+    whole = PseudospectralMPC.from_env(env, online_ssgp(5), config=config)
+    fields = PseudospectralMPC.from_env(env, online_ssgp(5), scheme="rti-split", horizon=2.0)
+
+    def settings(config: MPCConfig) -> tuple[MPCConfig, type]:  # a term compares by its type
+        return dataclasses.replace(config, term=None), type(config.term)
+
+    assert whole.config.resolved and settings(whole.config) == settings(fields.config)
+    resolved = whole.config
+    assert resolved.scheme.qp_solver and resolved.horizon.n_nodes is not None
+    assert resolved.residual.learn_online is True and resolved.term is not None
+    assert settings(resolved.resolve(model, online_ssgp(5))) == settings(resolved)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        resolved.scheme = "rti"  # type: ignore[misc]
+
+
+def test_the_agent_never_changes_the_learner_it_was_given():
+    """The MPC learns on its own copy: the caller's learner keeps its (unbound) linear
+    features and sees no data, whatever the agent does."""
+    env = _env("cartpole", scenario="online")
+    given = parametric_ssgp()
+    agent = PseudospectralMPC.from_env(env, given, residual=Residual(sensitivities=True),
+                                       term="linearized")
+    agent.pretrain(collect_initial_data(env, 30, seed=0))
+    obs, _ = env.reset(seed=0)
+    nxt, *_ = env.step(agent.act(obs))
+    agent.observe(obs, agent.diagnostics[-1].action, nxt)
+    agent.act(nxt)
+    assert agent.learner is not given
+    assert given.linear_features == "sensitivities"
+    assert getattr(given, "n_samples_seen_", 0) == 0
+    assert agent.learner.n_samples_seen_ == 31
 
 
 def test_settings_objects_check_their_values():
@@ -366,7 +450,7 @@ def test_an_ssgp_learning_online_needs_an_update():
     env = _env("pendulum")
     with pytest.raises(ValueError, match="no update"):
         PseudospectralMPC.from_env(env, ExactGP(), residual=Residual(learn_online=True))
-    assert not PseudospectralMPC.from_env(env, ExactGP()).learn_online
+    assert not PseudospectralMPC.from_env(env, ExactGP()).config.learns_online
 
 
 # ----------------------------------------------------------------------------- validation
@@ -439,17 +523,29 @@ def test_keep_system_reset_keeps_the_draw():
 
 
 # ----------------------------------------------------------------------------- degradation
-def test_degradation_warns_once_per_episode_and_is_counted():
+def test_degradation_warns_once_per_episode_after_a_share_of_the_task_and_is_counted():
+    """A degraded episode warns once, and only after WARN_AFTER_FRACTION of the task's
+    replans: a degraded start alone (the first few replans) is counted in ``health()`` but
+    raises no warning."""
+    from gp_agents.mpc.diagnostics import WARN_AFTER_FRACTION
+
     env = _env("pendulum")
+    model = env.unwrapped.nominal_model
+    share = int(np.ceil(WARN_AFTER_FRACTION * model.task.duration / model.dt))
     agent = PseudospectralMPC.from_env(env, scheme=Converged(max_iterations=1))
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        rollout(env, agent, 0, max_steps=8)
-        rollout(env, agent, 1, max_steps=8)
+        rollout(env, agent, 0, max_steps=share - 1)
+    assert agent.health()["degraded"]
+    assert not [w for w in caught if issubclass(w.category, ControllerDegradedWarning)]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        rollout(env, agent, 0, max_steps=share + 2)
+        rollout(env, agent, 1, max_steps=share + 2)
     degraded = [w for w in caught if issubclass(w.category, ControllerDegradedWarning)]
     assert len(degraded) == 2, [str(w.message) for w in caught]
     health = agent.health()
-    assert health["degraded"] and health["replans"] == 8
+    assert health["degraded"] and health["replans"] == share + 2
     assert health["capped"] + health["failed"] >= 3
     quiet = PseudospectralMPC.from_env(env)
     with warnings.catch_warnings():

@@ -19,7 +19,7 @@ import gp_envs
 from benchmarks.controllers import ENVS
 from benchmarks.systems import unregister_benchmark_system
 from benchmarks.trial import TrialSpec, execute
-from gp_agents import PseudospectralMPC, collect_initial_data
+from gp_agents import Converged, PseudospectralMPC, collect_initial_data
 from gp_agents.agent import rollout
 from gp_agents.defaults import PlanningDefaults, unregister_defaults
 from gp_envs.systems import (
@@ -147,10 +147,12 @@ def test_one_registration_gives_env_mpc_defaults_data_and_benchmark_entry(user_s
     env = gym.make("user/PointMass-v0")
     assert env.spec.max_episode_steps == 40 and system_of(env) is user_system
     agent = PseudospectralMPC.from_env(env)
-    assert agent.schedule.horizon == pytest.approx(1.2) and agent.qp_solver is None
+    assert agent.config.schedule.horizon == pytest.approx(1.2)
+    assert isinstance(agent.config.scheme, Converged)
     # a registered system without RTI tuning of its own gets the defaults
     rti = PseudospectralMPC.from_env(env, scheme="rti")
-    assert rti.qp_solver == "active-set:proxqp" and rti.levenberg_marquardt == 0.0
+    assert rti.config.scheme.qp_solver == "active-set:proxqp"
+    assert rti.config.scheme.levenberg_marquardt == 0.0
     data = collect_initial_data(env, 30, seed=0)
     assert data.X.shape == (30, 2)
     np.testing.assert_allclose(data.X[0], [-1.0, 0.0])  # the registered data start
@@ -230,18 +232,26 @@ def test_controller_and_benchmark_entries_are_checked():
     ({"levenberg_marquardt": np.inf}, "levenberg_marquardt"),
     ({"learned_term": ""}, "learned_term"), ({"learned_term": None}, "learned_term"),
     ({"qp_solver": ""}, "qp_solver"),
-    ({"recipe_levenberg_marquardt": {"robust": -1.0}}, "recipe_levenberg_marquardt"),
-    ({"recipe_levenberg_marquardt": {"robust": np.nan}}, "recipe_levenberg_marquardt"),
-    ({"recipe_levenberg_marquardt": {3: 1.0}}, "recipe_levenberg_marquardt"),
-    ({"recipe_recovery_iterations": {"robust": -1}}, "recipe_recovery_iterations"),
-    ({"recipe_recovery_iterations": {"robust": 1.5}}, "recipe_recovery_iterations"),
-    ({"recipe_recovery_iterations": {"robust": True}}, "recipe_recovery_iterations"),
-    ({"recipe_recovery_iterations": {3: 1}}, "recipe_recovery_iterations")])
+    ({"recovery_iterations": -1}, "recovery_iterations"),
+    ({"recovery_iterations": True}, "recovery_iterations")])
 def test_rti_tuning_is_checked(kwargs, message):
     from gp_agents.mpc import RTITuning
 
     with pytest.raises(ValueError, match=message):
         RTITuning(**kwargs)
+
+
+def test_the_rti_tuning_is_data_and_names_no_recipe():
+    """Per-system tuning holds data only: no field and no entry names a recipe (a recipe's own
+    values live with the recipes)."""
+    import dataclasses
+
+    from gp_agents.mpc import RECIPES, RTITuning
+    from gp_agents.mpc.tuning import RTI_TUNING
+
+    assert not [f.name for f in dataclasses.fields(RTITuning) if "recipe" in f.name]
+    for tuning in RTI_TUNING.values():
+        assert not set(map(str, dataclasses.astuple(tuning))) & set(RECIPES)
 
 
 def test_gp_envs_knows_no_solver():
@@ -268,10 +278,10 @@ def test_unknown_systems_are_named_errors():
         "u_lb", "u_ub", "task", "substeps", "angle_indices", "dynamic_indices")},
         "name": "unregistered", "param_ranges": model.param_ranges})
     # a model without controller defaults: min(50 periods, a quarter of the task), 12 nodes
-    default = PseudospectralMPC(unnamed).schedule
+    default = PseudospectralMPC(unnamed).config.schedule
     assert default.horizon == pytest.approx(min(50 * model.dt, model.task.duration / 4))
     assert (default.n_nodes, default.n_intervals) == (12, 1)
-    assert PseudospectralMPC(unnamed, horizon=1.0).schedule.horizon == 1.0
+    assert PseudospectralMPC(unnamed, horizon=1.0).config.schedule.horizon == 1.0
 
 
 def test_built_in_systems_are_registered_in_their_env_modules():

@@ -36,7 +36,8 @@ from matplotlib.ticker import FormatStrFormatter, FuncFormatter, SymmetricalLogL
 
 import gp_envs  # noqa: F401  (registers the envs)
 from benchmarks.report import mean_ci, wilson_ci
-from gp_agents.rl import METADATA_FILE, RLAgent, rollout
+from gp_agents.agent import rollout
+from gp_agents.rl import METADATA_FILE, RLAgent
 
 HERE = Path(__file__).resolve().parents[1]
 MODELS = HERE / "models"
@@ -64,7 +65,7 @@ def evaluate(model_dir: Path, seeds: range = SEEDS) -> tuple[dict[str, Any], lis
     agent = RLAgent.load(model_dir, env)
     episodes = []
     for seed in seeds:
-        ep = rollout(agent, env, seed)
+        ep = rollout(env, agent, seed).summary()
         episodes.append({"model": str(model_dir.relative_to(HERE)), "seed": seed, **ep})
     env.close()
     rets = np.array([e["return"] for e in episodes])

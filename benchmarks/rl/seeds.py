@@ -18,7 +18,8 @@ import numpy as np
 
 import gp_envs  # noqa: F401  (registers the envs)
 from benchmarks.rl.runs import REPO, Plan
-from gp_agents.rl import METADATA_FILE, RLAgent, rollout
+from gp_agents.agent import rollout
+from gp_agents.rl import METADATA_FILE, RLAgent
 
 OUT = Path(__file__).resolve().parents[1] / "results" / "rl"
 FINAL_SEEDS = range(20)
@@ -72,7 +73,7 @@ def final_episodes(run: SeedRun, seeds: range = FINAL_SEEDS) -> list[dict[str, A
     assert run.metadata is not None
     env = gym.make(run.metadata["env_id"], scenario=run.metadata["scenario"])
     agent = RLAgent.load(run.path, env)
-    eps = [{"seed": run.seed, "episode_seed": s, **rollout(agent, env, s)} for s in seeds]
+    eps = [{"seed": run.seed, "episode_seed": s, **rollout(env, agent, s).summary()} for s in seeds]
     env.close()
     for e in eps:
         e["cost"] = -e["return"]

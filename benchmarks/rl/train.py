@@ -93,6 +93,7 @@ from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.vec_env import VecNormalize
 
 from benchmarks import USER_MODELS_DIR
+from gp_agents.agent import rollout
 from gp_agents.rl import (
     ALGORITHMS,
     METADATA_FILE,
@@ -100,7 +101,6 @@ from gp_agents.rl import (
     episode_limit,
     get_env_state,
     make_training_vec_env,
-    rollout,
     set_env_state,
     training_wrappers_record,
 )
@@ -296,7 +296,7 @@ def evaluate_policy(agent: RLAgent, env: gym.Env, seeds: range) -> dict[str, flo
     Returns:
         The :data:`CURVE_FIELDS` statistics except ``timesteps`` and ``wall_time_s``.
     """
-    eps = [rollout(agent, env, s) for s in seeds]
+    eps = [rollout(env, agent, s).summary() for s in seeds]
     rets = np.array([e["return"] for e in eps])
     return {"success_rate": float(np.mean([e["success"] for e in eps])),
             "mean_cost": float(-rets.mean()), "std_cost": float(rets.std()),

@@ -117,10 +117,10 @@ def export_ocp(env: Any, agent: Any) -> dict[str, Any]:
     model = base.nominal_model
     plant = gp_envs.oracle_model(env)
     task = model.task
-    mesh = agent.mesh
+    mesh = agent.config.schedule.mesh(agent.model.dt)
     if model.name != "quadrotor":
         raise ValueError(f"the acados worker has the quadrotor's ODE only, got {model.name!r}")
-    if agent.constraints.state_penalty is None:
+    if agent.config.constraints.state_penalty is None:
         raise ValueError("the acados OCP mirrors the soft state margin; state_penalty is None")
     physics = base.physics
     return {
@@ -140,8 +140,8 @@ def export_ocp(env: Any, agent: Any) -> dict[str, Any]:
         "goal": np.asarray(task.goal).tolist(), "u_ref": np.asarray(task.u_ref).tolist(),
         "u_lb": np.asarray(model.u_lb).tolist(), "u_ub": np.asarray(model.u_ub).tolist(),
         "x_lb": np.asarray(model.x_lb).tolist(), "x_ub": np.asarray(model.x_ub).tolist(),
-        "state_margin": float(agent.constraints.state_margin),
-        "state_penalty": float(agent.constraints.state_penalty),
+        "state_margin": float(agent.config.constraints.state_margin),
+        "state_penalty": float(agent.config.constraints.state_penalty),
         "start": np.asarray(base._state, dtype=float).tolist(),
         "configs": acados_grids(mesh.horizon, model.dt, mesh.n_collocation),
     }
@@ -617,7 +617,7 @@ def main(argv: list[str] | None = None) -> int:
                 x0 = None
                 for label, agent in agents.items():
                     if label in learned:  # every episode from the same pretrained learner
-                        agent.learner = agent.term.learner = copy.deepcopy(learned[label])
+                        agent.learner = agent._term.learner = copy.deepcopy(learned[label])
                     measured[label], x0 = run_ours(env, agent, seed, args.steps)
                 assert x0 is not None
                 return x0

@@ -218,8 +218,8 @@ class _Probe:
         if learner is None or not fitted:  # no learned residual: no error to compare
             self.rows.append((float("nan"), float("nan"), True))
         else:
-            z, y = agent.residual.targets(obs[None], np.asarray(action, float)[None],
-                                          next_obs[None])
+            residual = agent.config.residual.model(agent.model)
+            z, y = residual.targets(obs[None], np.asarray(action, float)[None], next_obs[None])
             pred = learner.predict(z)
             self.rows.append((float(np.linalg.norm(pred - y)), float(np.linalg.norm(y)),
                               bool(getattr(learner, "residual_on_", True))))

@@ -215,7 +215,8 @@ def domain_spread(env: str, scenario: str, controller: str) -> np.ndarray:
     X = np.zeros((5000, model.n_states))
     X[:, bounded] = rng.uniform(lo[bounded], hi[bounded], (5000, int(bounded.sum())))
     U = rng.uniform(model.u_lb, model.u_ub, (5000, model.n_controls))
-    return built.agent.residual.inputs(X, U).std(axis=0)
+    agent = built.agent
+    return agent.config.residual.model(agent.model).inputs(X, U).std(axis=0)
 
 
 def _boxed(detect: bool, gate: bool) -> Callable[[np.ndarray], Any]:

@@ -78,7 +78,7 @@ def profile(env_name: str, controller: str, steps: int, seed: int = 0) -> dict[s
         for step in range(steps):
             action = agent.act(obs)
             if step == 0:  # the first act builds the NLP: left out of the profile
-                first_solves = agent.n_solves
+                first_solves = agent.counts.solves
             next_obs, _, terminated, truncated, _ = env.step(action)
             agent.observe(obs, action, next_obs)
             obs = next_obs

@@ -58,7 +58,7 @@ def _run(spec: TrialSpec, steps: int | None) -> tuple[list[dict[str, Any]], list
         raise ValueError(f"controller {spec.controller!r} learns nothing: no residual to trace")
     env, built, _ = build_episode(spec)
     agent, obs = built.agent, built.obs
-    residual, learner = agent.residual, agent.learner
+    residual, learner = agent.config.residual.model(agent.model), agent.learner
     std = learner.standardizer_
     state_names = env.unwrapped.physics.STATE_NAMES
     outputs = [f"d({state_names[i]})/dt" for i in residual.uncertain_indices]
@@ -200,7 +200,7 @@ def main(argv: list[str] | None = None) -> None:
         agent, obs = end["agent"], end["obs"]
         if control.shape != (agent.model.n_controls,):
             parser.error(f"--decompose needs {agent.model.n_controls} control values")
-        z = agent.residual.inputs(obs[None], control[None])[0]
+        z = agent.config.residual.model(agent.model).inputs(obs[None], control[None])[0]
         std = agent.learner.standardizer_
         zs = (z - std.z_mean) / std.z_std
         text += (f"\n## The learned residual after step {rows[-1]['step']} at state "

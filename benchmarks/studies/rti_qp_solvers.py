@@ -28,8 +28,9 @@ import gymnasium as gym
 import numpy as np
 
 import gp_envs
-from gp_agents import PseudospectralMPC
+from gp_agents import RTI, PseudospectralMPC
 from gp_agents.agent import rollout_lockstep
+from gp_agents.mpc import StepStatus
 from gp_agents.mpc.active_set import ActiveSetQP
 from gp_agents.mpc.rti import ACTIVE_SET_PREFIX, QP_SOLVER_OPTIONS, resolve_qp_solver
 
@@ -101,16 +102,16 @@ def main(argv: list[str] | None = None) -> None:
             pairs = []
             for solver in variants.values():
                 env = gym.make(env_id, scenario=scenario)
-                pairs.append((env, PseudospectralMPC.from_env(env, scheme="rti",
-                                                              qp_solver=solver)))
+                pairs.append((env, PseudospectralMPC.from_env(
+                    env, scheme=RTI(qp_solver=solver))))
             for qp, (_, agent), ep in zip(variants, pairs, rollout_lockstep(pairs, seed),
                                           strict=True):
                 d, row = agent.diagnostics_arrays(), rows[qp]
                 row["cost"].append(ep.cost)
-                row["rejected"] += agent.planner.n_rti_rejected
-                row["steps"] += agent.planner.n_rti_steps
-                row["fallbacks"] += agent.planner.n_qp_fallbacks
-                row["rti"].extend(d["solve_time"][d["status"] == "RTI"])
+                row["rejected"] += agent.counts.rti_rejected
+                row["steps"] += agent.counts.rti_steps
+                row["fallbacks"] += agent.counts.qp_fallbacks
+                row["rti"].extend(d["solve_time"][d["status"] == StepStatus.RTI])
                 row["act"].extend(ep.act_times[1:])  # the first act builds the NLP
         for qp, row in rows.items():
             print(f"| {env_id} | {qp} | {np.mean(row['cost']):.3f} | "

@@ -46,6 +46,8 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np
 
+from gp_agents.mpc.diagnostics import StepStatus
+
 ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_OUT = ROOT / "benchmarks" / "results" / "rti_step_profile"
 SCENARIOS = {"cartpole": "online", "quadrotor": "online", "dubins": "paper",
@@ -82,15 +84,15 @@ def closed_loop(env: Any, agent: Any, seed: int, steps: int) -> dict[str, Any]:
     d = agent.diagnostics_arrays()
     act, prep = np.asarray(d["act_time"], float), np.asarray(d["preparation_time"], float)
     status = [str(s) for s in d["status"][1:]]
-    plain = np.array([False] + [s == "RTI" for s in status])
+    plain = np.array([False] + [s == StepStatus.RTI for s in status])
     return {"act_ms": _median_ms(act), "latency_ms": _median_ms(act - prep),
             "plain_act_ms": float(np.median(act[plain]) * 1e3) if plain.any() else np.nan,
             "plain_latency_ms": (float(np.median((act - prep)[plain]) * 1e3) if plain.any()
                                  else np.nan),
             "preparation_ms": _median_ms(prep), "steps": len(act),
-            "plain": sum(s == "RTI" for s in status),
-            "recovered": sum(s.startswith("RTI recovered") for s in status),
-            "rejected": sum(s.startswith("RTI rejected") for s in status), "obs": obs}
+            "plain": sum(s == StepStatus.RTI for s in status),
+            "recovered": sum(s == StepStatus.RTI_RECOVERED for s in status),
+            "rejected": sum(s == StepStatus.RTI_REJECTED for s in status), "obs": obs}
 
 
 def pieces(nominal: Any, learning: Any, obs: np.ndarray, calls: int) -> dict[str, Any]:
@@ -212,7 +214,7 @@ def act_breakdown(env: Any, agent: Any, data: Any, seed: int, steps: int) -> dic
             break
     d = agent.diagnostics_arrays()
     plain = [int(k) for k, s in zip(d["step"], d["status"], strict=True)
-             if str(s) == "RTI" and int(k) > 0]
+             if s == StepStatus.RTI and int(k) > 0]
     act = dict(zip((int(k) for k in d["step"]), np.asarray(d["act_time"], float),
                    strict=True))
     out = {"act": float(np.median([act[k] for k in plain]) * 1e3)}
@@ -256,8 +258,8 @@ def run_system(name: str, steps: int, repeats: int, calls: int) -> dict[str, Any
     breakdown = act_breakdown(env, make_mpc(env, "robust", scheme="rti"),
                               collect_initial_data(env, 200, seed=BASE_SEED), BASE_SEED, steps)
     return {"rows": rows, "pieces": parts, "act breakdown": breakdown,
-            "term": type(agents["robust rti"].term).__name__,
-            "qp_solver": repr(agents["robust rti"].qp_solver)}
+            "term": type(agents["robust rti"].config.term).__name__,
+            "qp_solver": repr(agents["robust rti"].config.scheme.qp_solver)}
 
 
 def _ratio(rows: list[dict[str, Any]], a: str, b: str, key: str) -> list[float]:

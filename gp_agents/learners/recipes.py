@@ -19,11 +19,10 @@ LINEAR_LENGTH_SCALE_FLOOR = 5.0
 """The same with linear features (see :func:`online_ssgp`)."""
 INPUT_SATURATION = 30.0
 """Standard deviations of the initial data at which the saturated recipe's learner saturates
-its standardized inputs (``online_ssgp(input_saturation=INPUT_SATURATION)``). Chosen on tuning
-seeds of eight cart-pole and quadrotor cells: every level from 5 up kept the quadrotor on target
-with another draw's initial data, levels below 20 cost cart-pole swing-ups, and 30 had the lower
-cart-pole cost of 20 and 30 (``docs/studies/learner_envelope.md``). Not the :func:`online_ssgp`
-default: the paper's recipe is measured without it."""
+its standardized inputs (``online_ssgp(input_saturation=INPUT_SATURATION)``): far enough out
+that a swing-up's states stay unsaturated, near enough that a plan cannot exploit the learner
+tens of standard deviations beyond its data. Not the :func:`online_ssgp` default: the paper's
+recipe has no saturation."""
 
 
 def online_ssgp(n_frequencies: int = 50, forgetting_factor: float = 0.995,
@@ -50,8 +49,7 @@ def online_ssgp(n_frequencies: int = 50, forgetting_factor: float = 0.995,
     on the quadrotor) the floor is five standard deviations: under observation noise the
     one-sigma floor let the fit on the noisy initial data put length scales on the floor along
     inputs that hardly vary in those data (the quadrotor's cos(psi), std 2e-5), and the learned
-    Jacobians reached thousands in physical units; the quadrotor then crashed on every noisy
-    tuning seed (``docs/studies/learner_envelope.md``).
+    Jacobians reached thousands in physical units, and the quadrotor crashed under noise.
 
     Args:
         n_frequencies: ``r`` (``2r`` features per output).
@@ -102,14 +100,13 @@ def parametric_ssgp(sensitivity_columns: Sequence[int] | None = None, n_frequenc
     goal the Dubins vehicle's learned model had it drift at 0.3 m/s while at rest (mostly from
     the cos(psi) column, 20 standard deviations outside its data), so it passed the goal,
     stopped facing away from it and stayed 0.13 m off. The Dubins rates are the sensitivities
-    times ``dp`` exactly, so restricting the linear part to them removes the offset. The
-    decision record of the study (``residual_trace``, ``learner_envelope``) is in the
-    documentation.
+    times ``dp`` exactly, so restricting the linear part to them removes the offset.
 
     Args:
         sensitivity_columns: the learner-input columns of the parameter sensitivities
-            (non-empty; negative indices count from the end; ``agent.residual.
-            sensitivity_columns``), or None: the MPC's own.
+            (non-empty; negative indices count from the end;
+            ``agent.config.residual.model(agent.model).sensitivity_columns``), or None: the
+            MPC's own.
         n_frequencies, forgetting_factor, random_state: as :func:`online_ssgp`.
 
     Raises:
@@ -121,8 +118,8 @@ def parametric_ssgp(sensitivity_columns: Sequence[int] | None = None, n_frequenc
         columns = tuple(int(c) for c in sensitivity_columns)
         if not columns:
             raise ValueError("parametric_ssgp needs the learner-input columns of the parameter "
-                             "sensitivities, or None for the MPC's own (agent.residual."
-                             "sensitivity_columns of an MPC with Residual(sensitivities=True))")
+                             "sensitivities, or None for the MPC's own (those of an MPC with "
+                             "Residual(sensitivities=True))")
     return online_ssgp(n_frequencies, forgetting_factor, random_state, linear_features=columns,
                        change_detector=ChangeDetector(), nominal_fallback=NominalFallback(),
                        input_saturation=INPUT_SATURATION)

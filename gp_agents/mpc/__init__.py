@@ -4,8 +4,10 @@
 ``recipes``             :func:`make_mpc` and :data:`RECIPES`: the named recipes
 ``controller``          :class:`PseudospectralMPC`: ``from_env``, ``pretrain``, ``act``,
                         ``observe``, ``reset``, ``health``, ``diagnostics_arrays``
+``config``              :class:`MPCConfig`: every setting, resolved once for a model
 ``settings``            the settings objects: :class:`Converged`, :class:`RTI`,
                         :class:`Residual` (and ``schedule``'s, ``ocp``'s :class:`Constraints`)
+``inputs``              checks of observations, actions and initial data
 ``tuning``              per-system solver tuning: :class:`RTITuning`, :func:`rti_tuning`
 ``schedule``            when to plan: :class:`RecedingHorizon`, :class:`Episodic`
 ``planner``             warm start, re-linearization, retry, fallback; :class:`Plan`'s action
@@ -17,13 +19,19 @@
 ``gp_linearized``       :class:`LinearizedGP`: the GP linearized per node (real-time iteration)
 ``gp_pattern``          :class:`PatternLinearizedGP`: linearized on the nominal Jacobian pattern
 ``gp_zero_order``       :class:`ZeroOrderGP`: the GP's value frozen per node, adjoint-corrected
-``diagnostics``         :class:`StepRecord`
+``diagnostics``         :class:`StepRecord`, :class:`StepStatus`, :class:`SolveCounts`
 ======================  ==================================================================
 """
 
 from gp_agents.learners.recipes import online_ssgp
-from gp_agents.mpc.controller import LEARNED_TERMS, PseudospectralMPC
-from gp_agents.mpc.diagnostics import ControllerDegradedWarning, StepRecord
+from gp_agents.mpc.config import LEARNED_TERMS, MPCConfig
+from gp_agents.mpc.controller import PseudospectralMPC
+from gp_agents.mpc.diagnostics import (
+    ControllerDegradedWarning,
+    SolveCounts,
+    StepRecord,
+    StepStatus,
+)
 from gp_agents.mpc.gp_in_nlp import MAX_LEARNED_MODEL_SIZE, GPInNLP
 from gp_agents.mpc.gp_linearized import COLD_START_LINEARIZATIONS, LinearizedGP
 from gp_agents.mpc.gp_pattern import PatternLinearizedGP
@@ -52,6 +60,7 @@ __all__ = [
     "GPInNLP",
     "LearnedTerm",
     "LinearizedGP",
+    "MPCConfig",
     "Mesh",
     "NoLearnedTerm",
     "OracleModel",
@@ -63,7 +72,9 @@ __all__ = [
     "RTITuning",
     "RecedingHorizon",
     "Residual",
+    "SolveCounts",
     "StepRecord",
+    "StepStatus",
     "ZeroOrderGP",
     "build_ocp",
     "make_mpc",

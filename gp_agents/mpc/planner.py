@@ -13,6 +13,14 @@ changes) and at every call
    previous plan while it covers the current time (a *fallback*), else the last finite iterate,
    else a constant plan at the task's reference control.
 
+Every replan's record says what happened in :class:`~gp_agents.mpc.diagnostics.StepStatus`
+terms; the counts since the agent was built are one
+:class:`~gp_agents.mpc.diagnostics.SolveCounts` that every planner of an agent shares.
+
+A planner owns its phases (:meth:`Planner.replan`, :meth:`Planner.after_action`): when the
+learner's pending transitions are learned relative to the solve, and any work done after the
+action is sent (the split real-time iteration's preparation).
+
 Solves are capped by iterations only (IPOPT ``max_iter``), never by wall-clock time, so what the
 controller does is a function of its inputs, not of the machine's load.
 
@@ -23,12 +31,13 @@ control over the period (5-point Gauss quadrature of the interpolant), clipped t
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+from gp_agents.mpc.diagnostics import SolveCounts, StepStatus
 from gp_agents.mpc.ocp import Constraints, Mesh, build_ocp
 from gp_agents.mpc.planning_model import PlanningModel
 from gp_agents.pseudospectral import (
@@ -38,10 +47,16 @@ from gp_agents.pseudospectral import (
     OCPSolution,
 )
 
-__all__ = ["CAPPED_STATUSES", "Plan", "Planner"]
+__all__ = ["CAPPED_STATUSES", "Learn", "Plan", "Planner"]
 
 CAPPED_STATUSES = ("Maximum_Iterations_Exceeded",)
-"""Solver statuses of a solve that ran into its iteration cap."""
+"""The NLP solver's return statuses of a solve that ran into its iteration cap (read where the
+solve returns, into the record's ``capped``)."""
+
+Learn = Callable[[], "Planner"]
+"""The agent's learning hook a planner calls when its scheme learns: it gives the learner the
+pending transitions and returns the planner to go on with (rebuilt when the learned term's
+parameter layout changed)."""
 
 _PERIOD_QUADRATURE = np.polynomial.legendre.leggauss(5)
 
@@ -96,12 +111,13 @@ class Planner:
         jit: compile the NLP's functions (CasADi JIT).
         warm_start_duals: a warm solve also starts from the previous plan's multipliers, with
             IPOPT's warm-start options (:data:`gp_agents.pseudospectral.IPOPT_WARM_START_OPTIONS`).
+        counts: where this planner counts (the agent's, shared by its planners); None: its own.
     """
 
     def __init__(self, planning: PlanningModel, mesh: Mesh, constraints: Constraints, *,
                  solver: str = "ipopt", solver_options: Mapping[str, Any] | None = None,
                  max_iterations: int = 500, jit: bool = False,
-                 warm_start_duals: bool = False) -> None:
+                 warm_start_duals: bool = False, counts: SolveCounts | None = None) -> None:
         if int(max_iterations) < 1:
             raise ValueError(f"max_iterations must be >= 1, got {max_iterations}")
         self.planning, self.mesh, self.constraints = planning, mesh, constraints
@@ -115,12 +131,27 @@ class Planner:
             options.setdefault("ipopt", {}).setdefault("max_iter", int(max_iterations))
         self.ocp: GaussPseudospectralSolver = build_ocp(
             planning, mesh, constraints, solver=solver, solver_options=options, jit=jit)
-        self.n_solves = self.n_failures = self.n_fallbacks = self.n_retries = 0
-        self.n_capped = 0
+        self.counts = SolveCounts() if counts is None else counts
+        self.counts.builds += 1
+
+    def replan(self, x: np.ndarray, previous: Plan | None, step: int, learn: Learn
+               ) -> tuple[Plan, dict[str, Any]]:
+        """A replan of the closed loop: learn the pending transitions first (Algorithm 1:
+        the learner is updated before the next solve), then :meth:`plan` with the planner
+        ``learn`` returns."""
+        return learn().plan(x, previous, step)
+
+    def after_action(self, plan: Plan, record: Mapping[str, Any], learn: Learn
+                     ) -> dict[str, Any]:
+        """Work done after the action of the new plan ``plan`` (whose replan gave ``record``)
+        is sent; returns updates of the step's record. A converged or one-call scheme has
+        none."""
+        return {}
 
     def plan(self, x: np.ndarray, previous: Plan | None, step: int) -> tuple[Plan, dict[str, Any]]:
         """A plan from state ``x`` (n,) at control period ``step``, and the solve's record:
-        ``success, status, iterations, solve_time, solves, fallback, linearization_error``."""
+        ``success, status`` (:class:`~gp_agents.mpc.diagnostics.StepStatus`), ``solver_status,
+        capped, iterations, solve_time, solves, fallback, linearization_error``."""
         model = self.planning.model
         p = self.planning.param_values()
         cold = previous is None or not isinstance(previous.solution, OCPSolution)
@@ -135,7 +166,7 @@ class Planner:
         usable = sol.success and np.all(np.isfinite(sol.u))
         if not usable and not cold:
             retry, again = self._solve(p, x, self._goal_guess(x), True)
-            self.n_retries += 1
+            self.counts.retries += 1
             record = {key: record[key] + again[key] if key in ("iterations", "solve_time",
                                                                "solves") else again[key]
                       for key in record}
@@ -144,13 +175,15 @@ class Planner:
         fallback = False
         plan = Plan(sol, step, model.dt, self.ocp.hold)
         if not usable:
-            self.n_failures += 1
+            self.counts.failures += 1
             if previous is not None and previous.covers(step):
                 plan, fallback = previous, True
             elif not (np.all(np.isfinite(sol.u)) and np.all(np.isfinite(sol.x))):
                 plan, fallback = Plan(self._hold_guess(x), step, model.dt), True
-            self.n_fallbacks += int(fallback)
-        record.update(success=bool(sol.success), status=sol.status, fallback=fallback)
+            self.counts.fallbacks += int(fallback)
+        record.update(success=bool(sol.success), status=StepStatus.SOLVED,
+                      solver_status=str(sol.status), capped=sol.status in CAPPED_STATUSES,
+                      fallback=fallback)
         return plan, record
 
     def _solve(self, p: np.ndarray, x: np.ndarray, guess: Any, cold: bool,
@@ -165,8 +198,8 @@ class Planner:
             q = term.node_param_values(*reference)
             sol = self.ocp.solve(p=p, x0=x, initial_guess=guess, node_params=q,
                                  multipliers=duals if solves == 1 else None)
-            self.n_solves += 1
-            self.n_capped += int(sol.status in CAPPED_STATUSES)
+            self.counts.solves += 1
+            self.counts.capped += int(sol.status in CAPPED_STATUSES)
             iterations += max(int(sol.iterations), 0)
             solve_time += float(sol.solve_time)
             if q is None:

@@ -26,6 +26,7 @@ keyword. The learning recipes return an unfitted agent: ``agent.pretrain(data)``
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Mapping
 from typing import Any
 
 import gymnasium as gym
@@ -33,9 +34,9 @@ import gymnasium as gym
 import gp_envs
 from gp_agents.learners.recipes import online_ssgp, parametric_ssgp
 from gp_agents.mpc.blackbox import BlackBoxModel
-from gp_agents.mpc.controller import LEGACY_SETTINGS, PseudospectralMPC, _from_legacy
+from gp_agents.mpc.controller import PseudospectralMPC
 from gp_agents.mpc.settings import RTI, Converged, Residual, scheme_settings
-from gp_agents.mpc.tuning import rti_tuning
+from gp_agents.mpc.tuning import RECOVERY_ITERATIONS
 from gp_envs.model import ControlModel
 
 __all__ = ["DEFAULT_RECIPE", "RECIPES", "OracleModel", "make_mpc", "recipe_settings"]
@@ -54,11 +55,22 @@ RECIPES: dict[str, str] = {
 
 BLACKBOX_LINEAR_FEATURES = True
 """The black-box learner's linear features (on every input: a force enters an acceleration
-linearly), chosen on tuning seeds (``docs/studies/data_efficiency.md``)."""
+linearly)."""
 BLACKBOX_REFIT_UNTIL = 100
 """The black-box recipe's ``Residual(refit_until=...)``: with no prior, the hyperparameters and
-input scales fitted on a few samples are refitted as the data double, up to 100 samples
-(``docs/studies/data_efficiency.md``)."""
+input scales fitted on a few samples are refitted as the data double, up to 100 samples."""
+
+RECIPE_RTI: Mapping[str, Mapping[str, Mapping[str, Any]]] = {
+    "robust": {"dubins": {"levenberg_marquardt": 1.0,
+                          "recovery_iterations": RECOVERY_ITERATIONS}},
+}
+"""Real-time-iteration settings a recipe sets on a system (recipe -> system name -> fields of
+:class:`~gp_agents.mpc.settings.RTI`) where the system's tuning
+(:mod:`gp_agents.mpc.tuning`) does not serve it, used where the scheme leaves them unset. The
+robust recipe on the Dubins vehicle: a model close to the truth moves its plan little from one
+period to the next and takes a heavier damping (``mu`` = 1, which removes its rejected steps,
+the controls flipping from bound to bound in the first seconds) and the recovery, which the
+other recipes, whose plans must be corrected more at every period, do not."""
 
 DEFAULT_RECIPE = "robust"
 """The recipe of ``make_mpc(env)``."""
@@ -75,20 +87,24 @@ class OracleModel:
         return gp_envs.oracle_model(self.env)
 
 
-def recipe_settings(recipe: str, scheme: str | Converged | RTI | None = None
-                    ) -> dict[str, Any]:
-    """The constructor settings of ``recipe`` with ``scheme`` (None: converged), learner
-    included (a fresh, unfitted one; None for the recipes that learn nothing); the oracle's
-    model source is added by :func:`make_mpc`.
+def recipe_settings(recipe: str, scheme: str | Converged | RTI | None = None,
+                    system: str | None = None) -> dict[str, Any]:
+    """The constructor settings of ``recipe`` with ``scheme`` (None: converged) on the system
+    called ``system`` (its :data:`RECIPE_RTI` entries; None: none), learner included (a
+    fresh, unfitted one; None for the recipes that learn nothing); the oracle's and the
+    black box's model sources are added by :func:`make_mpc`.
 
     Raises:
-        ValueError: an unknown recipe (the message lists them).
+        ValueError: an unknown recipe (the message lists them) or scheme.
     """
     if recipe not in RECIPES:
         raise ValueError(f"unknown MPC recipe {recipe!r}; recipes: {', '.join(RECIPES)}")
-    scheme = "converged" if scheme is None else scheme
-    settings = scheme_settings(scheme)  # checks the name
-    out: dict[str, Any] = {"scheme": scheme, "learner": None}
+    settings = scheme_settings("converged" if scheme is None else scheme)  # checks the name
+    own = RECIPE_RTI.get(recipe, {}).get(system or "", {})
+    if isinstance(settings, RTI) and own:
+        settings = dataclasses.replace(settings, **{
+            k: v for k, v in own.items() if getattr(settings, k) is None})
+    out: dict[str, Any] = {"scheme": settings, "learner": None}
     if recipe == "paper":
         out["learner"] = online_ssgp()
     elif recipe == "robust":
@@ -101,37 +117,6 @@ def recipe_settings(recipe: str, scheme: str | Converged | RTI | None = None
         if isinstance(settings, Converged):
             out["term"] = "linearized"
     return out
-
-
-def _recipe_scheme(recipe: str, env: gym.Env, scheme: str | Converged | RTI,
-                   overrides: dict[str, Any]) -> str | Converged | RTI:
-    """``scheme`` with the system's Levenberg-Marquardt ``mu`` and recovery budget for
-    ``recipe`` (:attr:`~gp_agents.mpc.tuning.RTITuning.recipe_levenberg_marquardt`,
-    :attr:`~gp_agents.mpc.tuning.RTITuning.recipe_recovery_iterations`) where the real-time
-    iteration sets neither itself; else ``scheme`` as given. The deprecated flat keywords of
-    the scheme in ``overrides`` (``qp_solver=``, ``levenberg_marquardt=``, the fallback's
-    solver settings) are taken out and mapped onto it first, so that they change only what
-    they name."""
-    legacy = {k: overrides.pop(k) for k in list(overrides)
-              if LEGACY_SETTINGS.get(k, "").startswith("scheme=")}
-    if legacy:
-        scheme = _from_legacy(legacy, None, scheme, None, None, None)[1]
-    resolved = scheme_settings(scheme)
-    if not isinstance(resolved, RTI):
-        return scheme
-    tuning = rti_tuning(gp_envs.nominal_model(env))
-    named = {*tuning.recipe_levenberg_marquardt, *tuning.recipe_recovery_iterations}
-    if named - set(RECIPES):
-        raise ValueError(f"the RTI tuning of this system names unknown recipe(s) "
-                         f"{sorted(named - set(RECIPES))}; recipes: {sorted(RECIPES)}")
-    changes: dict[str, Any] = {}
-    mu = tuning.recipe_levenberg_marquardt.get(recipe)
-    if mu is not None and resolved.levenberg_marquardt is None:
-        changes["levenberg_marquardt"] = mu
-    budget = tuning.recipe_recovery_iterations.get(recipe)
-    if budget is not None and resolved.recovery_iterations is None:
-        changes["recovery_iterations"] = int(budget)
-    return dataclasses.replace(resolved, **changes) if changes else scheme
 
 
 def make_mpc(env: gym.Env, recipe: str = DEFAULT_RECIPE, *,
@@ -161,12 +146,15 @@ def make_mpc(env: gym.Env, recipe: str = DEFAULT_RECIPE, *,
         env = gym.make("gp_envs/CartPoleSwingUp-v0", scenario="online")
         agent = make_mpc(env).pretrain(collect_initial_data(env, 200, seed=0))
     """
-    gp_envs.nominal_model(env)  # raises TypeError, saying how to give the env a model
-    settings = recipe_settings(recipe, scheme)
+    model = gp_envs.nominal_model(env)  # raises TypeError, saying how to give the env a model
+    settings = recipe_settings(recipe, scheme, model.name)
     if "learner" in overrides and settings["learner"] is None and overrides["learner"] is not None:
         raise ValueError(f"recipe {recipe!r} learns nothing: it takes no learner (the learning "
                          f"recipes: 'robust', 'paper', 'blackbox')")
-    settings["scheme"] = _recipe_scheme(recipe, env, settings["scheme"], overrides)
+    if "config" in overrides:
+        raise TypeError("make_mpc takes the settings it overrides as keywords (horizon=, "
+                        "scheme=, term=, residual=, constraints=); for a whole MPCConfig, "
+                        "build PseudospectralMPC.from_env(env, learner, config=...)")
     settings.update(overrides)
     learner = settings.pop("learner")
     source = (OracleModel(env) if recipe == "oracle" else BlackBoxModel(env)

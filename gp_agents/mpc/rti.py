@@ -39,8 +39,8 @@ NLP's) with IPOPT's warm-start options (the :class:`~gp_agents.mpc.planner.Plann
 with its retry and fallback to the previous plan). Before that, with a recovery budget
 (``recovery_iterations``), the step may be recovered inside the real-time scheme by
 feasibility projections and SQP iterations (:meth:`RTIPlanner._recover`).
-Every such step is counted (``n_rti_rejected``, ``n_rti_recovered``). No wall-clock limit
-anywhere.
+Every such step is counted (the planner's ``counts``: ``rti_rejected``,
+``rti_recovered``). No wall-clock limit anywhere.
 """
 
 from __future__ import annotations
@@ -53,6 +53,7 @@ import casadi as ca
 import numpy as np
 
 from gp_agents.mpc.active_set import ActiveSetQP
+from gp_agents.mpc.diagnostics import StepStatus
 from gp_agents.mpc.learned_term import LearnedTerm
 from gp_agents.mpc.ocp import Constraints, Mesh
 from gp_agents.mpc.planner import Plan, Planner
@@ -167,9 +168,6 @@ class RTIPlanner(Planner):
             raise ValueError(f"recovery_iterations must be an int >= 0, got "
                              f"{recovery_iterations!r}")
         self.recovery_iterations = int(recovery_iterations)
-        self.n_rti_steps = self.n_rti_rejected = 0
-        self.n_rti_recovered = self.n_recovery_iterations = 0
-        self.n_qp_fallbacks = 0  # active-set QPs that did not settle (ActiveSetQP only)
 
     def _build(self, qp_options: dict[str, Any]) -> tuple[ca.Function, ca.Function, ca.Function]:
         ocp, model = self.ocp, self.planning.model
@@ -501,8 +499,8 @@ class RTIPlanner(Planner):
         else:
             w_new, _, violation, lam_g, lam_x, qp_iterations = out[:6]
             violation = float(violation[0])
-            self.n_qp_fallbacks += int(qp_iterations[0] == 0)
-        self.n_rti_steps += 1
+            self.counts.qp_fallbacks += int(qp_iterations[0] == 0)
+        self.counts.rti_steps += 1
         recovered = 0
         attempted = bool(np.isfinite(violation) and violation > self.max_violation
                          and self.recovery_iterations and np.all(np.isfinite(w_new)))
@@ -515,20 +513,21 @@ class RTIPlanner(Planner):
             elapsed += time.perf_counter() - began
         if not (np.all(np.isfinite(w_new)) and violation <= self.max_violation) or (
                 attempted and not recovered):
-            self.n_rti_rejected += 1
+            self.counts.rti_rejected += 1
             plan, record = super().plan(x, previous, step)
             record["solve_time"] += elapsed
-            record["status"] = f"RTI rejected ({violation:.2g}), {record['status']}"
+            record["status"] = StepStatus.RTI_REJECTED
             return plan, record
-        status = "RTI" if not recovered else f"RTI recovered ({recovered})"
-        self.n_rti_recovered += int(recovered > 0)
-        self.n_recovery_iterations += recovered
-        sol = self.ocp.solution_from_primal(w_new, p, status=status, success=True,
+        status = StepStatus.RTI_RECOVERED if recovered else StepStatus.RTI
+        self.counts.rti_recovered += int(recovered > 0)
+        self.counts.recovery_iterations += recovered
+        sol = self.ocp.solution_from_primal(w_new, p, status=str(status), success=True,
                                             iterations=1 + recovered, solve_time=elapsed,
                                             lam_x=lam_x, lam_g=lam_g)
         return Plan(sol, step, self.planning.model.dt, self.ocp.hold), dict(
-            success=True, status=status, iterations=1 + recovered, solve_time=elapsed,
-            solves=1, fallback=False, linearization_error=float(error))
+            success=True, status=status, solver_status=str(status), capped=False,
+            iterations=1 + recovered, solve_time=elapsed, solves=1, fallback=False,
+            linearization_error=float(error))
 
     def _recover(self, x: np.ndarray, out: tuple[np.ndarray, ...], error: float
                  ) -> tuple[tuple[np.ndarray, ...], int, float]:
@@ -545,7 +544,7 @@ class RTIPlanner(Planner):
         of an SQP iteration is the recovered point (an SQP step with its feasibility
         correction). A feasible point that no SQP iteration preceded is never the plan: it
         forgets the objective, and its action can be far from any plan's (a quadrotor from a
-        perturbed start flipped over on two such points; study ``rti_recovery``).
+        perturbed start can flip over on one).
 
         Returns:
             The outputs (:data:`STEP_OUTPUTS`) of the last point reached, the QP solves taken

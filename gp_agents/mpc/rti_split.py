@@ -29,19 +29,21 @@ with the newest sample happens in the preparation *after* it, so each QP plans w
 learner as it was one sample earlier. The safety net is the one-call RTI's. Every plan is
 prepared for, a converged one (cold start, a rejected step's replacement) too; a step that
 was not prepared for, or whose measured angles lie more than half a turn from the
-prediction (counted in :attr:`n_unprepared` when warm), takes the one-call path.
+prediction (counted in ``counts.unprepared`` when warm), takes the one-call path.
 """
 
 from __future__ import annotations
 
 import time
+from collections.abc import Mapping
 from typing import Any
 
 import casadi as ca
 import numpy as np
 
 from gp_agents.mpc.active_set import ActiveSetQP
-from gp_agents.mpc.planner import Plan
+from gp_agents.mpc.diagnostics import StepStatus
+from gp_agents.mpc.planner import Learn, Plan
 from gp_agents.mpc.rti import STEP_OUTPUTS, RTIPlanner
 from gp_agents.pseudospectral import BufferedFunction, OCPSolution
 
@@ -52,8 +54,10 @@ class SplitRTIPlanner(RTIPlanner):
     """:class:`RTIPlanner` with a preparation phase (:meth:`prepare`) and a feedback phase
     (:meth:`plan`); arguments as for :class:`RTIPlanner`.
 
-    Counters: :attr:`n_prepared` feedback steps, :attr:`n_unprepared` warm steps that took
-    the one-call path.
+    Its phases in the closed loop: :meth:`replan` is the feedback (the learner as it was after
+    the last preparation), :meth:`after_action` learns the newest transitions and prepares the
+    next replan. Counted in ``counts.prepared`` (feedback steps) and ``counts.unprepared`` (warm
+    steps that took the one-call path).
     """
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
@@ -62,7 +66,29 @@ class SplitRTIPlanner(RTIPlanner):
         self._errors: dict[int, BufferedFunction] = {}
         self._feedback, self._predict_active_set = self._build_feedback()
         self._prepared: dict[str, Any] | None = None
-        self.n_prepared = self.n_unprepared = 0
+
+    # ------------------------------------------------------------------ the closed loop
+    def replan(self, x: np.ndarray, previous: Plan | None, step: int, learn: Learn
+               ) -> tuple[Plan, dict[str, Any]]:
+        """The feedback phase (:meth:`plan`): the learner is updated after the action, in the
+        preparation (:meth:`after_action`), not before the solve."""
+        return self.plan(x, previous, step)
+
+    def after_action(self, plan: Plan, record: Mapping[str, Any], learn: Learn
+                     ) -> dict[str, Any]:
+        """Learn the pending transitions, then the preparation of the next replan from
+        ``plan`` (on the planner ``learn`` returns). Returns the record's
+        ``preparation_time`` (s: the learning and the preparation) and, after an accepted
+        RTI step, its ``linearization_error`` (the expansion error at the new plan)."""
+        start = time.perf_counter()
+        planner = learn()
+        assert isinstance(planner, SplitRTIPlanner)
+        info = planner.prepare(plan, plan.step + self.mesh.held_periods)
+        out: dict[str, Any] = {}
+        if record["status"] == StepStatus.RTI:
+            out["linearization_error"] = info["linearization_error"]
+        out["preparation_time"] = time.perf_counter() - start
+        return out
 
     # ------------------------------------------------------------------ compiled phases
     def _prepare_function(self, n_theta: int) -> BufferedFunction:
@@ -210,10 +236,10 @@ class SplitRTIPlanner(RTIPlanner):
                                  prep["p"], *prep["guess"])
         except RuntimeError:  # the QP plugin raised
             out = None
-        self.n_prepared += 1
+        self.counts.prepared += 1
         plan, record = self._accept(x, previous, step, out, prep["p_nlp"], float("nan"),
                                     time.perf_counter() - start)
-        if record["status"] == "RTI":
+        if record["status"] == StepStatus.RTI:
             prep["plan"] = plan
             self._prepared = prep  # kept for the expansion error at the next preparation
         return plan, record
@@ -221,5 +247,5 @@ class SplitRTIPlanner(RTIPlanner):
     def _one_call(self, x: np.ndarray, previous: Plan | None, step: int
                   ) -> tuple[Plan, dict[str, Any]]:
         warm = previous is not None and step - previous.step == self.mesh.held_periods
-        self.n_unprepared += int(warm)
+        self.counts.unprepared += int(warm)
         return super().plan(x, previous, step)

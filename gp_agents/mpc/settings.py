@@ -1,23 +1,10 @@
-"""The MPC's settings, grouped by what they configure (as do-mpc's settings and acados' solver
-options are): each option lives on the object it configures, so a setting that does not apply
-to a combination cannot be passed, and one that could be passed but would change nothing raises
-when the MPC is built (:class:`~gp_agents.mpc.controller.PseudospectralMPC`).
-
-==============================  ===========================================================
-``horizon=``                    :class:`~gp_agents.mpc.schedule.RecedingHorizon` (Algorithm 1)
-                                or :class:`~gp_agents.mpc.schedule.Episodic` (plan once), or
-                                seconds (a receding horizon of that length)
-``scheme=``                     :class:`Converged` (every plan solved to convergence) or
-                                :class:`RTI` (one SQP step per period); or ``"converged"``,
-                                ``"rti"``, ``"rti-split"``
-``term=``                       how the learner enters the NLP: a name of
-                                :data:`~gp_agents.mpc.controller.LEARNED_TERMS` or a
-                                :class:`~gp_agents.mpc.learned_term.LearnedTerm`
-``residual=``                   :class:`Residual`: which states get a learned residual, what
-                                the learner sees, whether it learns online
-``constraints=``                :class:`~gp_agents.mpc.ocp.Constraints`: state box margin,
-                                obstacle margin, uncertainty radius
-==============================  ===========================================================
+"""The MPC's settings objects, grouped by what they configure: the scheme (:class:`Converged`,
+:class:`RTI`) and the learned residual (:class:`Residual`); the horizon's are in
+:mod:`~gp_agents.mpc.schedule`, the constraints' in :mod:`~gp_agents.mpc.ocp`. Each option lives
+on the object it configures, so a setting that does not apply to a combination cannot be passed;
+:meth:`gp_agents.mpc.config.MPCConfig.resolve` raises for one that could be passed but would
+change nothing. A scheme builds its planner (:meth:`Converged.planner`, :meth:`RTI.planner`): the
+planner class is chosen once, here.
 """
 
 from __future__ import annotations
@@ -29,7 +16,14 @@ from typing import Any, Literal
 import numpy as np
 
 from gp_agents.mpc.active_set import ActiveSetQP
-from gp_agents.mpc.rti import check_levenberg_marquardt
+from gp_agents.mpc.diagnostics import SolveCounts
+from gp_agents.mpc.ocp import Constraints, Mesh
+from gp_agents.mpc.planner import Planner
+from gp_agents.mpc.planning_model import PlanningModel
+from gp_agents.mpc.rti import RTIPlanner, check_levenberg_marquardt
+from gp_agents.mpc.rti_split import SplitRTIPlanner
+from gp_agents.residual import ResidualModel
+from gp_envs.model import ControlModel
 
 __all__ = ["RTI", "SCHEME_NAMES", "Converged", "Residual", "scheme_settings"]
 
@@ -41,18 +35,19 @@ class Converged:
     Attributes:
         solver: a CasADi ``nlpsol`` plugin (``"ipopt"``; ``"sqpmethod"`` ...).
         solver_options: the plugin's options (e.g. ``{"ipopt": {"tol": 1e-8}}``).
-        max_iterations: iteration cap of one solve, >= 1; the only cap (no wall-clock limit,
-            so outcomes never depend on machine load).
+        max_iterations: IPOPT's iteration cap of one solve (``max_iter``), >= 1; None: 500.
+            The only cap (no wall-clock limit, so outcomes never depend on machine load).
+            Another plugin's cap goes in its ``solver_options`` (setting this for one
+            raises), and IPOPT's ``max_iter`` goes here, not in ``solver_options``.
         jit: compile the NLP's functions to C at build (slower build, faster solves).
         warm_start_duals: a warm solve also starts from the previous solve's multipliers, with
             IPOPT's warm-start options (IPOPT only). Off by default: on the oracle cart pole it
-            stays in the previous plan's basin of the swing-up and costs more (the ``rti``
-            preset's report).
+            stays in the previous plan's basin of the swing-up and costs more.
     """
 
     solver: str = "ipopt"
     solver_options: Mapping[str, Any] | None = None
-    max_iterations: int = 500
+    max_iterations: int | None = None
     jit: bool = False
     warm_start_duals: bool = False
 
@@ -62,12 +57,23 @@ class Converged:
         if not (isinstance(self.solver, str) and self.solver):
             raise ValueError(f"Converged: solver must be a CasADi nlpsol plugin name, got "
                              f"{self.solver!r}")
-        if isinstance(self.max_iterations, bool) or int(self.max_iterations) < 1:
-            raise ValueError(f"Converged: max_iterations must be >= 1, got "
+        if self.max_iterations is not None and (
+                isinstance(self.max_iterations, bool)
+                or not isinstance(self.max_iterations, int | np.integer)
+                or self.max_iterations < 1):
+            raise ValueError(f"Converged: max_iterations must be an int >= 1, got "
                              f"{self.max_iterations!r}")
+        if self.max_iterations is not None and self.solver != "ipopt":
+            raise ValueError(f"Converged: max_iterations is IPOPT's max_iter; solver "
+                             f"{self.solver!r} takes its own cap in solver_options (e.g. "
+                             f"solver_options={{'max_iter': ...}} for sqpmethod)")
         if self.solver_options is not None and not isinstance(self.solver_options, Mapping):
             raise TypeError(f"Converged: solver_options must be a mapping, got "
                             f"{type(self.solver_options).__name__}")
+        ipopt = (self.solver_options or {}).get("ipopt", {})
+        if self.solver == "ipopt" and isinstance(ipopt, Mapping) and "max_iter" in ipopt:
+            raise ValueError("Converged: IPOPT's iteration cap is max_iterations=..., not "
+                             "solver_options={'ipopt': {'max_iter': ...}}")
         if self.warm_start_duals and self.solver != "ipopt":
             raise ValueError(f"Converged: warm_start_duals uses IPOPT's warm-start options; "
                              f"it does not apply to solver {self.solver!r}")
@@ -75,8 +81,14 @@ class Converged:
     def planner_settings(self) -> dict[str, Any]:
         """Keyword settings of :class:`~gp_agents.mpc.planner.Planner`."""
         return {"solver": self.solver, "solver_options": dict(self.solver_options or {}),
-                "max_iterations": int(self.max_iterations), "jit": bool(self.jit),
-                "warm_start_duals": bool(self.warm_start_duals)}
+                "max_iterations": int(500 if self.max_iterations is None
+                                      else self.max_iterations),
+                "jit": bool(self.jit), "warm_start_duals": bool(self.warm_start_duals)}
+
+    def planner(self, planning: PlanningModel, mesh: Mesh, constraints: Constraints,
+                counts: SolveCounts | None = None) -> Planner:
+        """The planner of this scheme: every plan a converged solve."""
+        return Planner(planning, mesh, constraints, counts=counts, **self.planner_settings())
 
 
 @dataclass(frozen=True)
@@ -131,6 +143,21 @@ class RTI:
     def name(self) -> str:
         """``"rti"`` or ``"rti-split"``."""
         return "rti-split" if self.split else "rti"
+
+    def planner(self, planning: PlanningModel, mesh: Mesh, constraints: Constraints,
+                counts: SolveCounts | None = None) -> RTIPlanner:
+        """The planner of this scheme: :class:`~gp_agents.mpc.rti.RTIPlanner`, or
+        :class:`~gp_agents.mpc.rti_split.SplitRTIPlanner` with ``split`` (settings resolved:
+        :meth:`gp_agents.mpc.config.MPCConfig.resolve`)."""
+        if self.qp_solver is None or self.levenberg_marquardt is None or (
+                self.recovery_iterations is None):
+            raise ValueError("an unresolved RTI has no planner: resolve it with "
+                             "MPCConfig(scheme=...).resolve(model)")
+        kind = SplitRTIPlanner if self.split else RTIPlanner
+        return kind(planning, mesh, constraints, counts=counts, qp_solver=self.qp_solver,
+                    levenberg_marquardt=self.levenberg_marquardt,
+                    recovery_iterations=self.recovery_iterations,
+                    **self.fallback.planner_settings())
 
 
 SCHEME_NAMES = ("converged", "rti", "rti-split")
@@ -202,3 +229,9 @@ class Residual:
                 or self.refit_until < 0):
             raise ValueError(f"Residual: refit_until must be an integer >= 0, got "
                              f"{self.refit_until!r}")
+
+    def model(self, model: ControlModel) -> ResidualModel:
+        """The residual these settings give on ``model``: what the learner is fitted on
+        (``targets``) and which of its inputs are parameter sensitivities
+        (``sensitivity_columns``)."""
+        return ResidualModel(model, self.uncertain, self.inputs, self.sensitivities)
