@@ -107,7 +107,7 @@ _DEFAULTS: dict[str, SystemDefaults] = {
                                      pilco_cartpole_data_policy),
     # DeepMind Control's cart-pole (gp_envs.dmc): the cart pole's time scales and tracking
     # controller; uniform random forces keep the pole near hanging, where the data say little
-    # about the upright pole (docs/studies/own_env.md)
+    # about the upright pole
     "dmc_cartpole": SystemDefaults(PlanningDefaults(horizon=1.5, n_nodes=16, n_intervals=1),
                                    cartpole_data_policy),
 }

@@ -29,7 +29,7 @@ episode, after the swing-up, while the pole is balanced; the nominal model stays
 
 With the dissipative damping of the "online" table no swing-up exists within 20 N; the bound of
 35 N is chosen so that the true system can swing up within the episode (the smallest feasible
-bound for the true and the nominal model: ``docs/studies/cartpole_force_bound.md``).
+bound for the true and the nominal model).
 
 ## Task, reward, episode
 Swing up and balance at the track centre: goal ``[0, pi, 0, 0]``. Stage cost (per second)

@@ -60,6 +60,17 @@ def test_no_library_module_names_a_results_file():
     assert [p for p, text in code.items() if "benchmarks/results" in text] == []
 
 
+def test_library_docstrings_keep_no_lab_notebook():
+    """The library describes behaviour and reasons: which study decided what, on which tuning
+    seeds, lives in the decision records (docs/studies), not in gp_envs or gp_agents."""
+    code = _sources("gp_envs", "gp_agents")
+    notebook = ("docs/studies", "tuning seed", "decision record", "preset's report",
+                "study ``")
+    found = [(p, phrase) for p, text in code.items() for phrase in notebook
+             if phrase in text.lower()]
+    assert found == []
+
+
 RESULTS = REPO / "benchmarks" / "results"
 
 

@@ -20,13 +20,11 @@ as soon as the learner has seen it.
 
 At a fit the history is seeded with the fitted data's leave-one-out errors (what the learner's
 error on new samples of the *same* system looks like), so that a system that changed between
-the data collection and the first sample (the robustness preset's *diff* cells) is caught
+the data collection and the first sample is caught
 within ``patience`` samples. After a declared change the history starts empty: nothing is
 surprising before ``history // 2`` errors of the new regime have been seen.
 
-The default settings were the first tried on the tuning seeds and were not changed
-(``docs/studies/learner_envelope.md``); the evaluation is the ``robustness`` preset's (recipes
-``ssgp-mpc-adaptive``, ``ssgp-mpc-linearized-adaptive``).
+The defaults are the first settings tried; they were never tuned.
 """
 
 from __future__ import annotations

@@ -1,13 +1,13 @@
 """Fall back to the nominal model while the learned residual predicts worse than none.
 
 The learners model the residual ``y = f_true - f_nominal``: predicting zero *is* the nominal
-model. A learner fitted on data of another system (the robustness preset's *diff* cells: the
+model. A learner fitted on data of another system (the
 system changed between data collection and control) can be further from the system now
 controlled than the nominal model is, and the MPC exploits its model where it is least
 supported: on the quadrotor, the first plan puts the rotors at a corner of the control box, tens
 of the data's standard deviations away, where the other system's model is off by ~20 rad/s^2
 in the angular accelerations against the nominal model's 4-8, and the vehicle leaves its
-attitude box within 0.2 s (``docs/studies/residual_trace.md``).
+attitude box within 0.2 s.
 
 :class:`NominalFallback` watches the learner's one-step prediction errors (each sample's error
 *before* it is learned, standardized) against those of the zero residual on the same samples,
@@ -19,10 +19,8 @@ first sample it is on. It is the statement "learning must never make it worse th
 nominal model" as a test on the newest data, not a guarantee: a learner that is better than zero
 on the last samples and wrong where the plan goes next is not caught.
 
-On tuning seeds it rescued quadrotor episodes with another draw's data and left every other
-cart-pole and quadrotor episode as it was (the residual switched off only where it was worse);
-the decision record is *The learner across the envelope* (``docs/studies/learner_envelope.md``),
-the evaluation the ``robustness`` preset (recipe ``ssgp-mpc-linearized-guarded``).
+It rescues quadrotor episodes with another system's data and leaves episodes where the learner
+is right as they were: the residual is switched off only where it predicts worse than none.
 """
 
 from __future__ import annotations

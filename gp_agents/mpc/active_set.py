@@ -23,17 +23,12 @@ starting from the right set needs one linear solve. :class:`ActiveSetQP` does th
    least 1), is above ``residual_tol``, one step of iterative refinement follows, and a
    residual still above it ends the iterations (step 4). (Relative, because rounding and
    the regularization leave residuals proportional to the data: an absolute threshold sent
-   a well-posed QP stated in large units to the fallback (tested), and refined the
-   learned model's Dubins QPs, with their larger right-hand sides, often enough to cost a
-   fifth of the split RTI's latency: 0.75 against 0.58 ms median, the nominal's 0.49
-   against 0.43 ms, on tuning seeds 100-102 in an ad-hoc timing not kept here.) The
-   refinement is a second factorization (CasADi's ``solve`` factorizes at every call), so
-   its threshold is the step's price: ``residual_tol`` 1e-7, chosen on tuning seeds
-   (decision record *The RTI's QP solver*, ``docs/studies/rti_qp_solvers.md``), is the
-   tightest of the values tried (1e-9 to 1e-6) at which the
-   quadrotor's first solves mostly pass without it (median nominal RTI step 0.58 against
-   0.82 ms at 1e-9), with the same closed-loop costs and rejected steps as 1e-9 on the cart
-   pole, the quadrotor and the Dubins vehicle, and no more fallbacks (quadrotor 3 against 4).
+   a well-posed QP stated in large units to the fallback (tested), and refined QPs with
+   large right-hand sides, the learned model's among them, often enough to cost a fifth of
+   the split RTI's latency.) The refinement is a second factorization (CasADi's ``solve``
+   factorizes at every call), so its threshold is the step's price: ``residual_tol`` 1e-7 is
+   the tightest value at which most first solves pass without a refinement, at the closed-loop
+   costs and rejected steps of a tighter one.
    ``dw = F z + c``; the bounds' multipliers follow from stationarity.
 3. The next set, by the primal-dual rule: a free variable (row) beyond a bound becomes active
    at it, an active one whose multiplier has the wrong sign is released. An unchanged set is

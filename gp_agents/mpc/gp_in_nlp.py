@@ -4,7 +4,7 @@ The paper's OCP ("Gauss Pseudospectral Optimal Control" with the semi-parametric
 learner's exported mean ``casadi_mean(phi(x, u), theta)`` is part of the dynamics constraint at
 every node, its parameter vector ``theta`` (weights, frequencies, standardization) an NLP
 parameter, so learning never rebuilds the solver. IPOPT then differentiates the GP twice per
-iteration, which is most of an iteration's cost (``docs/studies/profile_mpc.md``).
+iteration, which is most of an iteration's cost.
 """
 
 from __future__ import annotations
@@ -39,8 +39,7 @@ class GPInNLP(LearnedTerm):
         hessian: ``"exact"``: the Lagrangian Hessian has the GP's second derivatives.
             ``"nominal"``: it has the nominal physics' only (the GP's values and first
             derivatives stay exact in the constraints and their Jacobian, so a converged plan is
-            the same; the Newton steps are inexact and can stall: the ``speed-options`` preset
-            measured it).
+            the same; the Newton steps are inexact and can stall).
     """
 
     name = "exact"

@@ -163,8 +163,7 @@ class LinearizedGP(LearnedTerm):
         (``casadi_mean_gradient_batch``: the random features' analytic gradient for the
         SSGPs), chained with the input map's Jacobians: ``J[j, block k] = sum_i
         G_j[i, k] dZ[i, block k]`` as one product with ``E`` and one elementwise product per
-        output. (It replaced the reverse-mode AD of the batched mean and a product per node,
-        study ``rti_step_profile``.)"""
+        output (cheaper than reverse-mode AD of the batched mean and a product per node)."""
         res = self.residual
         n, m = res.model.n_states, res.model.n_controls
         M, d_out, nx = X.shape[1], res.n_outputs, n + m

@@ -30,9 +30,8 @@ the QP steps with the nominal model's Jacobian, so a control acting through a ga
 shrinks only for ``0 < g / g_nom < 2``. A nominal model that believes an actuator more than
 twice as weak as it is makes the iteration overshoot and alternate. On the Dubins vehicle,
 whose learned residual is the actuator loss itself, every episode that failed with this term
-had a gain ratio of at least 2.37, and none below 2 failed; the linearized term (the learned
-Jacobian in the QP) reached the goal on all of them (decision record *The zero-order RTI term*,
-``docs/studies/rti_zero_order.md``). Use it only where the nominal model's control gains are
+had a gain ratio above 2, and none below 2 failed; the linearized term (the learned Jacobian
+in the QP) reached the goal on all of them. Use it only where the nominal model's control gains are
 within a factor of two of the truth, not where the learned term rescales an actuator by more;
 no system's tuning uses it.
 """
