@@ -159,7 +159,7 @@ _RECIPE_LEARNERS = {"robust": "ssgp-parametric", "paper": "ssgp", "nominal": Non
                     "oracle": None, "blackbox": "ssgp-blackbox"}
 _RECIPE_LABELS = {"robust": "robust", "paper": "paper", "nominal": "nominal", "oracle": "oracle",
                   "blackbox": "black-box"}
-_SCHEME_LABELS = {"converged": "", "rti": ", RTI", "rti-split": ", RTI split"}
+_SCHEME_LABELS = {"converged": "", "sqp": ", SQP", "rti": ", RTI", "rti-split": ", RTI split"}
 
 
 def _recipe_controllers() -> dict[str, ControllerRecipe]:

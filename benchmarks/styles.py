@@ -28,6 +28,8 @@ from benchmarks.controllers import ALIASES
 
 RECEDING, EPISODIC, RTI, WARM_DUALS = "-", "--", "-.", ":"
 """Line styles of the three schemes."""
+SQP_SCHEME = (0, (5, 1, 1, 1, 1, 1))
+"""Line style of the SQP scheme (dash-dot-dot: converged, on the RTI's machinery)."""
 
 
 @dataclass(frozen=True)
@@ -130,6 +132,12 @@ STYLES: dict[str, Style] = {
     "blackbox-mpc": Style(_BLACKBOX, RECEDING, "$b$"),
     "blackbox-mpc@rti": Style(_BLACKBOX, RTI, "$B$"),
     "blackbox-mpc@rti-split": Style(_BLACKBOX, RTI, "$S$"),
+    # the SQP scheme: converged like the receding MPC, on the RTI's QP machinery
+    "nominal-mpc@sqp": Style(_NOMINAL, SQP_SCHEME, "$N$", linewidth=1.6),
+    "oracle-mpc@sqp": Style(_ORACLE, SQP_SCHEME, "$W$", linewidth=1.0, zorder=5.0),
+    "paper-mpc@sqp": Style(_SSGP, SQP_SCHEME, "$Y$"),
+    "robust-mpc@sqp": Style(_SSGP_LINEARIZED_PARAMETRIC, SQP_SCHEME, "$Q$"),
+    "blackbox-mpc@sqp": Style(_BLACKBOX, SQP_SCHEME, "$C$"),
     "sac": Style(_SAC, RECEDING, "*"),
     "ppo": Style(_PPO, RECEDING, "X"),
     "tqc": Style(_TQC, RECEDING, "$T$"),

@@ -30,6 +30,7 @@ from gp_agents.learners import SSGP, ExactGP, IncrementalSSGP, online_ssgp, para
 from gp_agents.mpc import (
     RECIPES,
     RTI,
+    SQP,
     Constraints,
     ControllerDegradedWarning,
     Converged,
@@ -47,6 +48,7 @@ from gp_envs.systems import load_system_plugins
 __all__ = [
     "RECIPES",
     "RTI",
+    "SQP",
     "SSGP",
     "Agent",
     "Constraints",

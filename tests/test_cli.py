@@ -204,8 +204,8 @@ def test_list_controllers_names_the_envs_each_rl_controller_has_a_model_for(
 
 
 @pytest.mark.parametrize(("name", "message"), [
-    ("robust-mpc@fast", "unknown scheme 'fast' of controller 'robust-mpc' (schemes: rti, "
-                        "rti-split, as robust-mpc@rti; converged: no suffix)"),
+    ("robust-mpc@fast", "unknown scheme 'fast' of controller 'robust-mpc' (schemes: sqp, rti, "
+                        "rti-split, as robust-mpc@sqp; converged: no suffix)"),
     ("robust-mpc@converged", "the converged scheme has no suffix; use 'robust-mpc'"),
     ("ssgp-mpc@rti", "'ssgp-mpc' is an older name of 'paper-mpc'; use 'paper-mpc@rti'"),
 ])

@@ -14,6 +14,7 @@ import gp_envs
 from gp_agents import (
     RECIPES,
     RTI,
+    SQP,
     Constraints,
     ControllerDegradedWarning,
     Converged,
@@ -270,6 +271,15 @@ _SETTINGS = {
                                        {"scheme": RTI(split=True, levenberg_marquardt=0.5)}),
     "RTI.recovery_iterations[split]": ("pendulum", False, {"scheme": RTI(split=True)},
                                        {"scheme": RTI(split=True, recovery_iterations=0)}),
+    # the SQP scheme's settings
+    "SQP.max_iterations": ("pendulum", False, {"scheme": SQP()},
+                           {"scheme": SQP(max_iterations=1)}),
+    "SQP.tolerance": ("pendulum", False, {"scheme": SQP()}, {"scheme": SQP(tolerance=1e-1)}),
+    "SQP.qp_solver": ("pendulum", False, {"scheme": SQP()}, {"scheme": SQP(qp_solver="osqp")}),
+    "SQP.levenberg_marquardt": ("pendulum", False, {"scheme": SQP()},
+                                {"scheme": SQP(levenberg_marquardt=0.5)}),
+    "SQP.fallback": ("pendulum", False, {"scheme": SQP()},
+                     {"scheme": SQP(fallback=Converged(max_iterations=2))}),
     # another NLP plugin's own options (its iteration cap among them)
     "Converged.solver_options[sqpmethod]": (
         "pendulum", False, {"scheme": Converged(solver="sqpmethod")},
@@ -297,7 +307,7 @@ def _fields() -> set[str]:
     from gp_agents.mpc.settings import RTI as R
 
     out = {"term"}
-    for cls in (RecedingHorizon, Episodic, Converged, R, Residual, Constraints):
+    for cls in (RecedingHorizon, Episodic, Converged, SQP, R, Residual, Constraints):
         out |= {f"{cls.__name__}.{f.name}" for f in dataclasses.fields(cls)}
     return out
 

@@ -26,6 +26,7 @@ from benchmarks.styles import (
     EPISODIC,
     RECEDING,
     RTI,
+    SQP_SCHEME,
     STYLES,
     WARM_DUALS,
     axis_label,
@@ -105,6 +106,7 @@ def test_every_recipe_has_one_fixed_distinct_style() -> None:
     assert style("ssgp-mpc").color != style("ssgp-mpc-linearized").color
     for name, recipe in CONTROLLERS.items():
         expected = (RTI if _scheme(recipe) in ("rti", "rti-split")
+                    else SQP_SCHEME if _scheme(recipe) == "sqp"
                     else WARM_DUALS if _warm(recipe)
                     else EPISODIC if recipe.mode == "episodic" else RECEDING)
         assert style(name).linestyle == expected, name

@@ -42,7 +42,7 @@ from gp_agents.mpc.planner import CAPPED_STATUSES, Plan, Planner
 from gp_agents.mpc.planning_model import PlanningModel
 from gp_agents.mpc.recipes import DEFAULT_RECIPE, RECIPES, OracleModel, make_mpc
 from gp_agents.mpc.schedule import Episodic, RecedingHorizon
-from gp_agents.mpc.settings import RTI, Converged, Residual
+from gp_agents.mpc.settings import RTI, SQP, Converged, Residual
 from gp_agents.mpc.tuning import RTITuning, register_rti_tuning, rti_tuning
 
 __all__ = [
@@ -53,6 +53,7 @@ __all__ = [
     "MAX_LEARNED_MODEL_SIZE",
     "RECIPES",
     "RTI",
+    "SQP",
     "Constraints",
     "ControllerDegradedWarning",
     "Converged",

@@ -42,7 +42,7 @@ from gp_agents.mpc.gp_zero_order import ZeroOrderGP
 from gp_agents.mpc.learned_term import LearnedTerm
 from gp_agents.mpc.ocp import Constraints
 from gp_agents.mpc.schedule import Episodic, RecedingHorizon
-from gp_agents.mpc.settings import RTI, Converged, Residual, scheme_settings
+from gp_agents.mpc.settings import RTI, SQP, Converged, Residual, scheme_settings
 from gp_agents.mpc.tuning import rti_tuning
 from gp_envs.model import ControlModel
 
@@ -77,7 +77,7 @@ class MPCConfig:
     """
 
     horizon: float | RecedingHorizon | Episodic | None = None
-    scheme: str | Converged | RTI = "converged"
+    scheme: str | Converged | SQP | RTI = "converged"
     term: str | LearnedTerm | None = None
     residual: Residual = field(default_factory=Residual)
     constraints: Constraints = field(default_factory=Constraints)
@@ -129,11 +129,17 @@ class MPCConfig:
         check_learner(learner)
         schedule = self.schedule.resolve(model)
         scheme = self.scheme
-        assert isinstance(scheme, Converged | RTI)
+        assert isinstance(scheme, Converged | SQP | RTI)
         residual = self.residual
         _check_combination(model, learner, schedule, scheme, self.term, residual,
                            self.constraints)
-        tuning = rti_tuning(model) if isinstance(scheme, RTI) else None
+        tuning = rti_tuning(model) if isinstance(scheme, RTI | SQP) else None
+        if isinstance(scheme, SQP):
+            assert tuning is not None
+            scheme = dataclasses.replace(
+                scheme, qp_solver=scheme.qp_solver or tuning.qp_solver,
+                levenberg_marquardt=(tuning.levenberg_marquardt if scheme.levenberg_marquardt
+                                     is None else scheme.levenberg_marquardt))
         if isinstance(scheme, RTI):
             assert tuning is not None
             scheme = dataclasses.replace(
@@ -192,12 +198,12 @@ def check_learner(learner: Any) -> None:
 
 
 def _check_combination(model: ControlModel, learner: Any, schedule: RecedingHorizon | Episodic,
-                       scheme: Converged | RTI, term: Any, residual: Residual,
+                       scheme: Converged | SQP | RTI, term: Any, residual: Residual,
                        constraints: Constraints) -> None:
     """A ``ValueError`` for every setting that would change nothing in this combination."""
-    if isinstance(schedule, Episodic) and isinstance(scheme, RTI):
-        raise ValueError("the real-time iteration refines a plan every period; an episodic plan "
-                         "is solved once: use scheme='converged' with Episodic")
+    if isinstance(schedule, Episodic) and isinstance(scheme, RTI | SQP):
+        raise ValueError(f"scheme {scheme.name!r} iterates from the previous period's plan; an "
+                         f"episodic plan is solved once: use scheme='converged' with Episodic")
     if learner is None:
         if term is not None:
             raise ValueError(f"term={term!r} configures how a learner enters the NLP; this MPC "

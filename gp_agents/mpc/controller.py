@@ -44,7 +44,7 @@ from gp_agents.mpc.ocp import Constraints
 from gp_agents.mpc.planner import Plan, Planner
 from gp_agents.mpc.planning_model import PlanningModel
 from gp_agents.mpc.schedule import Episodic, RecedingHorizon
-from gp_agents.mpc.settings import RTI, Converged, Residual
+from gp_agents.mpc.settings import RTI, SQP, Converged, Residual
 from gp_envs.model import ControlModel
 from gp_envs.wrapper import nominal_model
 
@@ -106,7 +106,7 @@ class PseudospectralMPC:
     def __init__(self, model: ControlModel, learner: Any | None = None, *,
                  config: MPCConfig | None = None,
                  horizon: float | RecedingHorizon | Episodic | None = None,
-                 scheme: str | Converged | RTI | None = None,
+                 scheme: str | Converged | SQP | RTI | None = None,
                  term: str | LearnedTerm | None = None, residual: Residual | None = None,
                  constraints: Constraints | None = None) -> None:
         if not isinstance(model, ControlModel):

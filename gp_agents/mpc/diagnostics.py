@@ -74,6 +74,9 @@ class SolveCounts:
         qp_fallbacks: active-set QPs that did not settle and took the fallback plugin.
         prepared: split-RTI feedback steps taken from a preparation.
         unprepared: warm split-RTI steps that took the one-call path instead.
+        sqp_iterations: iterations of the SQP scheme (:class:`~gp_agents.mpc.settings.SQP`).
+        sqp_fallbacks: SQP plans that did not converge within the budget and took the IPOPT
+            fallback.
     """
 
     builds: int = 0
@@ -89,6 +92,8 @@ class SolveCounts:
     qp_fallbacks: int = 0
     prepared: int = 0
     unprepared: int = 0
+    sqp_iterations: int = 0
+    sqp_fallbacks: int = 0
 
 
 HEALTH_KEYS = ("replans", "rti_steps", "rti_recovered", "rti_recovery_iterations",

@@ -35,7 +35,7 @@ import gp_envs
 from gp_agents.learners.recipes import online_ssgp, parametric_ssgp
 from gp_agents.mpc.blackbox import BlackBoxModel
 from gp_agents.mpc.controller import PseudospectralMPC
-from gp_agents.mpc.settings import RTI, Converged, Residual, scheme_settings
+from gp_agents.mpc.settings import RTI, SQP, Converged, Residual, scheme_settings
 from gp_agents.mpc.tuning import RECOVERY_ITERATIONS
 from gp_envs.model import ControlModel
 
@@ -87,7 +87,7 @@ class OracleModel:
         return gp_envs.oracle_model(self.env)
 
 
-def recipe_settings(recipe: str, scheme: str | Converged | RTI | None = None,
+def recipe_settings(recipe: str, scheme: str | Converged | SQP | RTI | None = None,
                     system: str | None = None) -> dict[str, Any]:
     """The constructor settings of ``recipe`` with ``scheme`` (None: converged) on the system
     called ``system`` (its :data:`RECIPE_RTI` entries; None: none), learner included (a
@@ -109,18 +109,19 @@ def recipe_settings(recipe: str, scheme: str | Converged | RTI | None = None,
         out["learner"] = online_ssgp()
     elif recipe == "robust":
         out.update(learner=parametric_ssgp(), residual=Residual(sensitivities=True))
-        if isinstance(settings, Converged):  # the RTI takes the system's tuned term
+        if isinstance(settings, Converged | SQP):  # the RTI takes the system's tuned term
             out["term"] = "linearized"
     elif recipe == "blackbox":
         out.update(learner=online_ssgp(linear_features=BLACKBOX_LINEAR_FEATURES),
                    residual=Residual(refit_until=BLACKBOX_REFIT_UNTIL))
-        if isinstance(settings, Converged):
+        if isinstance(settings, Converged | SQP):
             out["term"] = "linearized"
     return out
 
 
 def make_mpc(env: gym.Env, recipe: str = DEFAULT_RECIPE, *,
-             scheme: str | Converged | RTI | None = None, **overrides: Any) -> PseudospectralMPC:
+             scheme: str | Converged | SQP | RTI | None = None,
+             **overrides: Any) -> PseudospectralMPC:
     """The MPC of recipe ``recipe`` (:data:`RECIPES`) for ``env``'s nominal model and task.
 
     Args:
@@ -128,7 +129,7 @@ def make_mpc(env: gym.Env, recipe: str = DEFAULT_RECIPE, *,
             model by :func:`gp_envs.wrap` (found through the wrapper chain).
         recipe: ``"robust"`` (default), ``"paper"``, ``"nominal"``, ``"oracle"`` or
             ``"blackbox"``.
-        scheme: ``"converged"`` (default), ``"rti"``, ``"rti-split"`` or a
+        scheme: ``"converged"`` (default), ``"sqp"``, ``"rti"``, ``"rti-split"`` or a
             :class:`~gp_agents.mpc.settings.Converged` / :class:`~gp_agents.mpc.settings.RTI`.
         **overrides: constructor settings of
             :class:`~gp_agents.mpc.controller.PseudospectralMPC` that replace the recipe's

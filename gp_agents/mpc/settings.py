@@ -22,10 +22,11 @@ from gp_agents.mpc.planner import Planner
 from gp_agents.mpc.planning_model import PlanningModel
 from gp_agents.mpc.rti import RTIPlanner, check_levenberg_marquardt
 from gp_agents.mpc.rti_split import SplitRTIPlanner
+from gp_agents.mpc.sqp import SQPPlanner
 from gp_agents.residual import ResidualModel
 from gp_envs.model import ControlModel
 
-__all__ = ["RTI", "SCHEME_NAMES", "Converged", "Residual", "scheme_settings"]
+__all__ = ["RTI", "SCHEME_NAMES", "SQP", "Converged", "Residual", "scheme_settings"]
 
 
 @dataclass(frozen=True)
@@ -160,27 +161,84 @@ class RTI:
                     **self.fallback.planner_settings())
 
 
-SCHEME_NAMES = ("converged", "rti", "rti-split")
+@dataclass(frozen=True)
+class SQP:
+    """Every plan solved to convergence by SQP iterations on the real-time iteration's QP
+    machinery (:class:`~gp_agents.mpc.sqp.SQPPlanner`): from the shifted plan, Gauss-Newton
+    QP steps with the learned term re-expanded at every iterate, a merit line search, a
+    convergence test on the step and the constraint violation; IPOPT at the cold start and
+    when a plan does not converge within the budget.
+
+    Attributes:
+        max_iterations: SQP iterations of one plan, >= 1 (a count, never a time).
+        tolerance: convergence tolerance on the full step (infinity norm, in the NLP
+            variables' units) and on the constraint violation, > 0; not below the QP solver's
+            own accuracy (about 1e-6 for the tuned solvers).
+        qp_solver, levenberg_marquardt: the QP's, as for :class:`RTI`; None: the system's
+            tuning (:func:`gp_agents.mpc.tuning.rti_tuning`).
+        fallback: the converged IPOPT solves (cold start, no convergence).
+    """
+
+    max_iterations: int = 30
+    tolerance: float = 1e-4
+    qp_solver: str | ActiveSetQP | None = None
+    levenberg_marquardt: float | None = None
+    fallback: Converged = field(default_factory=lambda: Converged(warm_start_duals=True))
+
+    name = "sqp"
+
+    def __post_init__(self) -> None:
+        if (isinstance(self.max_iterations, bool)
+                or not isinstance(self.max_iterations, int | np.integer)
+                or self.max_iterations < 1):
+            raise ValueError(f"SQP: max_iterations must be an int >= 1, got "
+                             f"{self.max_iterations!r}")
+        if not (np.isfinite(self.tolerance) and self.tolerance > 0):
+            raise ValueError(f"SQP: tolerance must be a positive number, got {self.tolerance!r}")
+        if self.levenberg_marquardt is not None:
+            check_levenberg_marquardt(self.levenberg_marquardt)
+        if not isinstance(self.fallback, Converged):
+            raise TypeError(f"SQP: fallback must be a Converged, got "
+                            f"{type(self.fallback).__name__}")
+
+    def planner(self, planning: PlanningModel, mesh: Mesh, constraints: Constraints,
+                counts: SolveCounts | None = None) -> SQPPlanner:
+        """The planner of this scheme (settings resolved:
+        :meth:`gp_agents.mpc.config.MPCConfig.resolve`)."""
+        if self.qp_solver is None or self.levenberg_marquardt is None:
+            raise ValueError("an unresolved SQP has no planner: resolve it with "
+                             "MPCConfig(scheme=...).resolve(model)")
+        return SQPPlanner(planning, mesh, constraints, counts=counts,
+                          sqp_iterations=self.max_iterations, tolerance=self.tolerance,
+                          qp_solver=self.qp_solver,
+                          levenberg_marquardt=self.levenberg_marquardt,
+                          **self.fallback.planner_settings())
+
+
+SCHEME_NAMES = ("converged", "sqp", "rti", "rti-split")
 """The scheme shortcuts of :func:`scheme_settings`."""
 
 
-def scheme_settings(scheme: str | Converged | RTI) -> Converged | RTI:
+def scheme_settings(scheme: str | Converged | SQP | RTI) -> Converged | SQP | RTI:
     """The settings object of ``scheme``: ``"converged"`` -> :class:`Converged`, ``"rti"`` ->
     :class:`RTI`, ``"rti-split"`` -> ``RTI(split=True)``; an object is returned as it is.
 
     Raises:
         ValueError: an unknown name. TypeError: neither a name nor a settings object.
     """
-    if isinstance(scheme, Converged | RTI):
+    if isinstance(scheme, Converged | SQP | RTI):
         return scheme
     if isinstance(scheme, str):
         if scheme == "converged":
             return Converged()
+        if scheme == "sqp":
+            return SQP()
         if scheme in ("rti", "rti-split"):
             return RTI(split=scheme == "rti-split")
-        raise ValueError(f"scheme must be one of {list(SCHEME_NAMES)} or a Converged / RTI, "
-                         f"got {scheme!r}")
-    raise TypeError(f"scheme must be a name or a Converged / RTI, got {type(scheme).__name__}")
+        raise ValueError(f"scheme must be one of {list(SCHEME_NAMES)} or a Converged / SQP / "
+                         f"RTI, got {scheme!r}")
+    raise TypeError(f"scheme must be a name or a Converged / SQP / RTI, got "
+                    f"{type(scheme).__name__}")
 
 
 @dataclass(frozen=True)
