@@ -1,0 +1,122 @@
+"""Does the SQP scheme give the converged IPOPT solve's outcomes? (issue: converged quality at
+real-time speed; decision record ``docs/studies/sqp_scheme.md``).
+
+The robust recipe (``make_mpc(env)``) with ``scheme="sqp"`` (``robust-mpc@sqp``) on exactly the
+trials of the committed runs of the robust recipe with its converged IPOPT solve: the
+``recommended`` preset's (randomized truth, 200 initial samples; seeds 400-419, the Dubins
+vehicle 400-449) and the robustness preset's robust-recipe cells on the quadrotor and the
+Dubins vehicle (``benchmarks/results/robustness-parametric``: fixed, randomized, noisy,
+perturbed and changed systems, seeds 200-249). Nothing is tuned here: the SQP's budget and
+tolerance are its defaults. Paired by trial: success, cost (mean and largest paired relative
+difference), act median (the committed IPOPT runs' times come from other runs on this
+machine: a rough ratio, not an interleaved timing).
+
+Run: ``OMP_NUM_THREADS=1 python -m benchmarks.studies.sqp_scheme [--workers 2]`` (resumable:
+finished trials are kept); writes ``benchmarks/results/sqp-scheme/{metrics.csv,tables.md}``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import dataclasses
+import math
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+
+from benchmarks.presets import PRESETS
+from benchmarks.report.stats import wilson_ci
+from benchmarks.runner import run_trials
+from benchmarks.trial import TrialSpec
+
+ROOT = Path(__file__).resolve().parents[2]
+OUT = ROOT / "benchmarks" / "results" / "sqp-scheme"
+SQP = "robust-mpc@sqp"
+REFERENCES = {"recommended": ("robust-mpc",),
+              "robustness-parametric": ("ssgp-mpc-linearized-parametric",)}
+"""Committed runs of the robust recipe's converged IPOPT solve, and its names there."""
+
+
+def specs() -> list[tuple[str, TrialSpec, TrialSpec]]:
+    """(reference folder, the committed IPOPT trial, the same trial with the SQP scheme)."""
+    out = []
+    for spec in PRESETS["recommended"].experiments[0].specs:
+        if spec.controller == "robust-mpc":
+            out.append(("recommended", spec, dataclasses.replace(spec, controller=SQP)))
+    for spec in PRESETS["robustness"].experiments[0].specs:
+        if (spec.controller == "ssgp-mpc-linearized-parametric"
+                and spec.env in ("quadrotor", "dubins")):
+            out.append(("robustness-parametric", spec, dataclasses.replace(spec, controller=SQP)))
+    return out
+
+
+def _rows(path: Path) -> dict[str, dict[str, str]]:
+    with path.open() as f:
+        return {r["key"]: r for r in csv.DictReader(f)}
+
+
+def tables(pairs: list[tuple[str, TrialSpec, TrialSpec]], ours: dict[str, dict[str, str]]
+           ) -> str:
+    """The paired comparison, one row per (preset, env, scenario, cell)."""
+    refs = {folder: _rows(ROOT / "benchmarks" / "results" / folder / "metrics.csv")
+            for folder in REFERENCES}
+    groups: dict[tuple[str, str, str, str], list[tuple[dict, dict]]] = defaultdict(list)
+    for folder, ipopt, sqp in pairs:
+        a, b = refs[folder].get(ipopt.key), ours.get(sqp.key)
+        if a is None or b is None or b.get("status") != "ok":
+            continue
+        groups[(folder, a["env"], a["scenario"], a["cell"])].append((a, b))
+    lines = ["| run | env | scenario | cell | n | success IPOPT | success SQP | mean cost "
+             "IPOPT | mean cost SQP | difference | largest paired difference | act median "
+             "IPOPT (ms) | act median SQP (ms) | SQP plans that fell back to IPOPT |",
+             "|---|---|---|---|---:|---|---|---:|---:|---:|---:|---:|---:|---:|"]
+    for (folder, env, scenario, cell), items in sorted(groups.items()):
+        n = len(items)
+        succ = [sum(r["success"] == "True" for r in side) for side in zip(*items, strict=True)]
+        cost = [np.array([float(r["cost"]) for r in side]) for side in zip(*items, strict=True)]
+        act = [np.median([float(r["act_median_ms"]) for r in side])
+               for side in zip(*items, strict=True)]
+        ratio = cost[1] / cost[0] - 1.0
+        fell = sum(int(float(b["solves"])) - 1 for _, b in items)  # the cold starts aside
+        plans = sum(int(b["steps"]) for _, b in items)
+
+        def ci(k: int, n: int = n) -> str:
+            lo, hi = wilson_ci(k, n)
+            return f"{k}/{n} [{lo:.2f}, {hi:.2f}]"
+
+        lines.append(
+            f"| {folder} | {env} | `{scenario}` | {cell} | {n} | {ci(succ[0])} | {ci(succ[1])} | "
+            f"{cost[0].mean():.3f} | {cost[1].mean():.3f} | "
+            f"{100 * (cost[1].mean() / cost[0].mean() - 1):+.2f}% | "
+            f"{100 * float(np.max(np.abs(ratio))) if n else math.nan:.2f}% | {act[0]:.2f} | "
+            f"{act[1]:.2f} | {fell} of {plans} |")
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--workers", type=int, default=1)
+    parser.add_argument("--out", type=Path, default=OUT)
+    args = parser.parse_args(argv)
+    pairs = specs()
+    run_trials([sqp for _, _, sqp in pairs], args.out, workers=args.workers)
+    from benchmarks.report.load import load_trials, metric_rows
+
+    rows = metric_rows(load_trials(args.out, [sqp for _, _, sqp in pairs]).values())
+    ours = {r["key"]: {k: str(v) for k, v in r.items()} for r in rows}
+    with (args.out / "metrics.csv").open("w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    text = ("# The SQP scheme against the converged IPOPT solve (robust recipe)\n\n"
+            "`OMP_NUM_THREADS=1 python -m benchmarks.studies.sqp_scheme`\n\n"
+            + tables(pairs, ours))
+    (args.out / "tables.md").write_text(text)
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
