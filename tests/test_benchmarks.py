@@ -199,9 +199,9 @@ def test_linearized_preset_reports_speed_ratios_expansion_errors_and_scaling(
     assert main(argv) == 0
     report = (tmp_path / "report.md").read_text()
     assert "SSGP MPC, linearized" in report
-    assert "the nominal MPC's (target 1.5x:" in report  # the ratio, computed in the same run
+    assert "the `nominal-mpc`'s (target 1.5x:" in report  # the ratio, computed in the same run
     assert "error of the per-node expansion" in report
-    assert "| quadrotor | gp | SSGP MPC, linearized | 5000 |" in report  # samples learned
+    assert "| quadrotor | gp | `ssgp-mpc-linearized` | 5000 |" in report  # samples learned
     assert (tmp_path / "linearized_ssgp_act_scaling.png").is_file()
 
 

@@ -136,7 +136,7 @@ def test_the_robustness_section_reports_each_cell_against_the_oracle():
     quad = next(line for line in lines if line.startswith("| quadrotor"))
     assert "0.008" in quad and "1/2, 0.50" in quad  # largest error; recovered 1 of 2
     dubins = next(line for line in lines if line.startswith("| dubins"))
-    assert "SSGP MPC 1" in dubins  # one episode with obstacle contact
+    assert "`paper-mpc` 1" in dubins  # one episode with obstacle contact
 
 
 def test_readme_tables_show_cells_and_initial_samples_and_skip_trials_not_run(tmp_path):
