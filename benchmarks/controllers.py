@@ -238,12 +238,18 @@ def load_study_variants() -> bool:
     """Register the study variants (import :data:`STUDY_VARIANTS_MODULE` once, which calls
     :func:`register_controller` for each); True if this call registered them. The registry
     calls it itself the first time it is asked for a name it does not hold or for its whole
-    list, so that importing the engine imports no study."""
+    list, so that importing the engine imports no study. An installed package has no studies
+    (they run from a checkout): there the registry holds the main, older and RL names only."""
     if _study_variants["loaded"]:
         return False
     _study_variants["loaded"] = True
     try:
         importlib.import_module(STUDY_VARIANTS_MODULE)
+    except ModuleNotFoundError as error:
+        if error.name is None or not STUDY_VARIANTS_MODULE.startswith(error.name):
+            _study_variants["loaded"] = False
+            raise
+        return False  # not installed: no study variants
     except BaseException:
         _study_variants["loaded"] = False
         raise
