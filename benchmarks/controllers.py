@@ -4,8 +4,9 @@ A controller is named by a short string and built for one env and seed by
 :func:`build_controller`. The names compose (:func:`controller_name`):
 
 - ``<recipe>-mpc[@<scheme>]``: the MPC recipe of :data:`gp_agents.RECIPES` (``robust``,
-  ``paper``, ``nominal``, ``oracle``) with the scheme ``converged`` (default), ``rti`` or
-  ``rti-split``, built by :func:`gp_agents.make_mpc`: ``robust-mpc``, ``paper-mpc@rti-split``;
+  ``paper``, ``nominal``, ``oracle``, ``blackbox``, ``parametric``) with the scheme
+  ``converged`` (default), ``rti`` or ``rti-split``, built by :func:`gp_agents.make_mpc`:
+  ``robust-mpc``, ``paper-mpc@rti-split``;
 - the RL algorithms ``sac``, ``ppo``, ``tqc`` (the shipped stable-baselines3 policies,
   :class:`gp_agents.rl.RLAgent`; a missing model, or one trained for another scenario, makes the
   controller *unavailable* for that env, which the runner records instead of crashing);
@@ -156,9 +157,9 @@ def controller_name(recipe: str, scheme: str = "converged") -> str:
 
 
 _RECIPE_LEARNERS = {"robust": "ssgp-parametric", "paper": "ssgp", "nominal": None,
-                    "oracle": None, "blackbox": "ssgp-blackbox"}
+                    "oracle": None, "blackbox": "ssgp-blackbox", "parametric": "rls-parametric"}
 _RECIPE_LABELS = {"robust": "robust", "paper": "paper", "nominal": "nominal", "oracle": "oracle",
-                  "blackbox": "black-box"}
+                  "blackbox": "black-box", "parametric": "parametric"}
 _SCHEME_LABELS = {"converged": "", "sqp": ", SQP", "rti": ", RTI", "rti-split": ", RTI split"}
 
 
@@ -462,7 +463,9 @@ def make_learner(kind: str, parametric_columns: tuple[int, ...] = ()) -> Any:
     the input saturation :data:`~gp_agents.learners.INPUT_SATURATION`) or
     ``"ssgp-parametric"`` (:func:`gp_agents.parametric_ssgp`: the saturated one with linear
     features on the parameter sensitivities only, ``parametric_columns`` or, if empty, those
-    of the MPC it is given to) or ``"ssgp-blackbox"`` (the black-box recipe's)."""
+    of the MPC it is given to), ``"ssgp-blackbox"`` (the black-box recipe's) or
+    ``"rls-parametric"`` (:func:`gp_agents.learners.parametric_rls`, the parametric recipe's:
+    recursive least squares on the parameter sensitivities alone, no GP)."""
     from gp_agents import online_ssgp, parametric_ssgp
     from gp_agents.learners import INPUT_SATURATION, ChangeDetector, ExactGP, NominalFallback
 
@@ -482,6 +485,10 @@ def make_learner(kind: str, parametric_columns: tuple[int, ...] = ()) -> Any:
                            nominal_fallback=NominalFallback(), input_saturation=INPUT_SATURATION)
     if kind == "ssgp-parametric":
         return parametric_ssgp(parametric_columns or None)
+    if kind == "rls-parametric":
+        from gp_agents.learners import parametric_rls
+
+        return parametric_rls(parametric_columns or None)
     if kind == "ssgp-blackbox":
         from gp_agents.mpc.recipes import BLACKBOX_LINEAR_FEATURES
 

@@ -19,6 +19,7 @@ from .recipes import (
     LENGTH_SCALE_FLOOR,
     LINEAR_LENGTH_SCALE_FLOOR,
     online_ssgp,
+    parametric_rls,
     parametric_ssgp,
 )
 from .ssgp import SSGP
@@ -38,5 +39,6 @@ __all__ = [
     "NotFittedError",
     "Standardizer",
     "online_ssgp",
+    "parametric_rls",
     "parametric_ssgp",
 ]

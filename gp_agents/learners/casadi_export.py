@@ -148,4 +148,4 @@ def sym_fourier_features(
     """
     r = omega.shape[1]
     u = ca.mtimes(omega.T, zs)
-    return (sf / np.sqrt(r)) * ca.vertcat(ca.cos(u), ca.sin(u))
+    return (sf / np.sqrt(max(r, 1))) * ca.vertcat(ca.cos(u), ca.sin(u))

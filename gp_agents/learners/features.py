@@ -44,7 +44,7 @@ def fourier_features(Z: np.ndarray, omega: np.ndarray, signal_std: float) -> np.
         (N, 2r) rows ``phi(z_n)^T = sigma_s / sqrt(r) [cos(z_n^T Omega), sin(z_n^T Omega)]``.
     """
     U = Z @ omega
-    c = signal_std / np.sqrt(omega.shape[1])
+    c = signal_std / np.sqrt(max(omega.shape[1], 1))  # no Fourier features: r = 0
     return c * np.concatenate([np.cos(U), np.sin(U)], axis=1)
 
 
@@ -64,6 +64,6 @@ def fourier_mean_grad(
     """
     r = omega.shape[1]
     U = Z @ omega
-    c = signal_std / np.sqrt(r)
+    c = signal_std / np.sqrt(max(r, 1))
     H = c * (np.cos(U) * weights[r:] - np.sin(U) * weights[:r])
     return H @ omega.T

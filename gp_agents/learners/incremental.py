@@ -101,7 +101,8 @@ class IncrementalSSGP(SSGP):
     """SSGP updated online in ``O(r^2)`` per sample, with forgetting factor ``lambda``.
 
     Args:
-        n_frequencies: ``r`` (``2r`` features per output).
+        n_frequencies: ``r`` (``2r`` features per output); 0 with ``linear_features``: the
+            linear features alone, recursive least squares with forgetting (:class:`SSGP`).
         forgetting_factor: ``lambda`` in (0, 1]; 1 keeps every sample with equal weight.
         prior_refresh: prior coordinates restored per sample (``m`` in the module docstring).
         hyperparameters: as in :class:`SSGP`, as are ``bounds``, ``n_restarts``, ``max_iter``,

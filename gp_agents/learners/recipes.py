@@ -10,7 +10,7 @@ from .hyperparameters import HyperparameterBounds
 from .incremental import IncrementalSSGP
 
 __all__ = ["INPUT_SATURATION", "LENGTH_SCALE_FLOOR", "LINEAR_LENGTH_SCALE_FLOOR", "online_ssgp",
-           "parametric_ssgp"]
+           "parametric_rls", "parametric_ssgp"]
 
 LENGTH_SCALE_FLOOR = 1.0
 """Smallest length scale of :func:`online_ssgp`'s learner, in standard deviations of its
@@ -112,14 +112,45 @@ def parametric_ssgp(sensitivity_columns: Sequence[int] | None = None, n_frequenc
     Raises:
         ValueError: an empty sequence of columns.
     """
-    if sensitivity_columns is None:
-        columns: tuple[int, ...] | str = "sensitivities"
-    else:
-        columns = tuple(int(c) for c in sensitivity_columns)
-        if not columns:
-            raise ValueError("parametric_ssgp needs the learner-input columns of the parameter "
-                             "sensitivities, or None for the MPC's own (those of an MPC with "
-                             "Residual(sensitivities=True))")
+    columns = _sensitivity_columns(sensitivity_columns, "parametric_ssgp")
     return online_ssgp(n_frequencies, forgetting_factor, random_state, linear_features=columns,
                        change_detector=ChangeDetector(), nominal_fallback=NominalFallback(),
                        input_saturation=INPUT_SATURATION)
+
+
+def parametric_rls(sensitivity_columns: Sequence[int] | None = None,
+                   forgetting_factor: float = 0.995) -> IncrementalSSGP:
+    """The learner of the ``"parametric"`` recipe (:func:`gp_agents.make_mpc`), the grey-box
+    baseline: online re-identification of the nominal model's parameters alone, the residual
+    ``y = W' S(x, u)`` linear in the parameter sensitivities and nothing else (no GP).
+
+    :func:`parametric_ssgp`'s parametric part without the SSGP around it: an
+    :class:`~gp_agents.learners.IncrementalSSGP` with no Fourier features and linear features
+    on the sensitivity columns, i.e. recursive least squares with the forgetting factor on
+    standardized inputs and outputs, its prior (``sigma_n^2 / sigma_l^2`` ridge, both from the
+    marginal likelihood of the initial data, kept from decaying by the cyclic refresh) making
+    the first fits well posed. No change detector, nominal fallback or input saturation: the
+    textbook estimator, whose forgetting alone tracks a changed system.
+
+    Args:
+        sensitivity_columns: as :func:`parametric_ssgp` (None: the MPC's own).
+        forgetting_factor: ``lambda``, the robust recipe's 0.995 by default.
+
+    Raises:
+        ValueError: an empty sequence of columns.
+    """
+    columns = _sensitivity_columns(sensitivity_columns, "parametric_rls")
+    return IncrementalSSGP(0, forgetting_factor=forgetting_factor, hyperparameters="ssgp",
+                           linear_features=columns)
+
+
+def _sensitivity_columns(columns: Sequence[int] | None, name: str) -> tuple[int, ...] | str:
+    """``columns`` as a tuple, or ``"sensitivities"`` (the MPC's own) for None."""
+    if columns is None:
+        return "sensitivities"
+    out = tuple(int(c) for c in columns)
+    if not out:
+        raise ValueError(f"{name} needs the learner-input columns of the parameter "
+                         f"sensitivities, or None for the MPC's own (those of an MPC with "
+                         f"Residual(sensitivities=True))")
+    return out

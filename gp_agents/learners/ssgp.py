@@ -33,6 +33,14 @@ weights stay exactly zero). With the parameter sensitivities as the last inputs
 without linear terms in the raw states and controls: those are nearly collinear with the
 sensitivities on data from a narrow region and extrapolate as an offset that the physics
 does not have (a drift of a vehicle at rest).
+
+*No Fourier features* (``n_frequencies=0``, only with linear features): ``phi(z) = sigma_l z``
+alone, Bayesian linear regression on the linear-feature columns (``sigma_n`` and ``sigma_l``
+from the same marginal likelihood, in which the length scales and ``sigma_s`` then do not
+enter). With the parameter sensitivities as those columns that is the grey-box
+re-identification of the nominal model's parameters, ``y = dp' S(x, u)``; with
+:class:`~gp_agents.learners.IncrementalSSGP`'s forgetting, recursive least squares with a
+forgetting factor and a prior that keeps the first fits well posed.
 """
 
 from __future__ import annotations
@@ -97,7 +105,7 @@ def ssgp_nlml(
     s = float(np.exp(2.0 * theta[d + 1]))
     omega = scale_frequencies(base, ell)
     U = Z @ omega
-    c = sf / np.sqrt(r)
+    c = sf / np.sqrt(max(r, 1))  # r = 0: no Fourier features
     cosU, sinU = np.cos(U), np.sin(U)
     blocks = [c * cosU, c * sinU]
     mask = linear_mask(linear, d)
@@ -172,7 +180,8 @@ class SSGP(BaseGPLearner):
     """Batch Sparse Spectrum GP, one independent SSGP per output.
 
     Args:
-        n_frequencies: ``r`` (the model has ``2r`` features per output).
+        n_frequencies: ``r`` (the model has ``2r`` features per output); 0 only with
+            ``linear_features``: the linear features alone (module docstring).
         hyperparameters: ``"ssgp"`` (maximize the SSGP marginal likelihood), ``"exact"`` (fit an
             :class:`ExactGP` on the same data and copy its hyperparameters and standardization),
             a fitted :class:`ExactGP` (copy its hyperparameters and standardization), or a
@@ -236,8 +245,10 @@ class SSGP(BaseGPLearner):
     def fit(self, Z: np.ndarray, Y: np.ndarray) -> SSGP:
         """Fit on ``Z`` (N, d_in), ``Y`` (N, d_out). Returns ``self``."""
         Z, Y = check_training_data(Z, Y)
-        if int(self.n_frequencies) < 1:
-            raise ValueError("n_frequencies must be >= 1")
+        r = int(self.n_frequencies)
+        if r < 0 or (r == 0 and (self.linear_features is None or self.linear_features is False)):
+            raise ValueError("n_frequencies must be >= 1, or 0 with linear features (Bayesian "
+                             "linear regression on them alone)")
         std, hyp, base, lin = self._resolve_hyperparameters(Z, Y)
         Zs, Ys = std.transform_inputs(Z), std.transform_outputs(Y)
         self._install(std, hyp, base, lin)
@@ -474,7 +485,7 @@ class SSGP(BaseGPLearner):
         lay = self._layout_for(theta)
         omega = lay.unpack(theta, f"omega_{j}")
         arg = ca.mtimes(omega.T, Zs)  # (r, M)
-        phi = (lay.unpack(theta, f"sf_{j}") / np.sqrt(omega.shape[1])) * ca.vertcat(
+        phi = (lay.unpack(theta, f"sf_{j}") / np.sqrt(max(omega.shape[1], 1))) * ca.vertcat(
             ca.cos(arg), ca.sin(arg))
         if self.linear_std_ is not None:
             phi = ca.vertcat(phi, lay.unpack(theta, f"sl_{j}") * self._sym_masked(Zs))
@@ -494,7 +505,7 @@ class SSGP(BaseGPLearner):
         r, M = omega.shape[1], Zs.shape[1]
         arg = ca.mtimes(omega.T, Zs)  # (r, M)
         cos, sin = ca.cos(arg), ca.sin(arg)
-        c = lay.unpack(theta, f"sf_{j}") / np.sqrt(r)
+        c = lay.unpack(theta, f"sf_{j}") / np.sqrt(max(r, 1))
         phi = c * ca.vertcat(cos, sin)
         w = lay.unpack(theta, f"w_{j}")
         if self.linear_std_ is not None:

@@ -1,20 +1,23 @@
 """Named MPC recipes, as ``gym.make`` is for envs: ``make_mpc(env)`` is the controller that works.
 
-=============  ==============================================================================
-``robust``     (default) nominal physics plus the learner that held across randomized, changed
-               and noisy systems: :func:`~gp_agents.learners.parametric_ssgp` (an explicit
-               parametric part on the parameter sensitivities, the SSGP around it, restarted on
-               a change, off while worse than the nominal model), linearized per node
-``paper``      the paper's Algorithm 1: :func:`~gp_agents.learners.online_ssgp`, the GP's mean
-               inside the NLP; for reproducing the paper's tables
-``nominal``    physics only (the nominal model), no learning
-``oracle``     plans with the true model (:func:`gp_envs.oracle_model`): the upper bound that
-               no controller can see in practice
-``blackbox``   no physics prior (the GP-MPC / PILCO family's baseline): the model knows only
-               the kinematics (position rates are the velocities,
-               :func:`~gp_agents.mpc.blackbox.blackbox_model`) and an online SSGP learns every
-               acceleration from the data, linearized per node
-=============  ==============================================================================
+==============  ==============================================================================
+``robust``      (default) nominal physics plus the learner that held across randomized, changed
+                and noisy systems: :func:`~gp_agents.learners.parametric_ssgp` (an explicit
+                parametric part on the parameter sensitivities, the SSGP around it, restarted on
+                a change, off while worse than the nominal model), linearized per node
+``paper``       the paper's Algorithm 1: :func:`~gp_agents.learners.online_ssgp`, the GP's mean
+                inside the NLP; for reproducing the paper's tables
+``nominal``     physics only (the nominal model), no learning
+``oracle``      plans with the true model (:func:`gp_envs.oracle_model`): the upper bound that
+                no controller can see in practice
+``blackbox``    no physics prior (the GP-MPC / PILCO family's baseline): the model knows only
+                the kinematics (position rates are the velocities,
+                :func:`~gp_agents.mpc.blackbox.blackbox_model`) and an online SSGP learns every
+                acceleration from the data, linearized per node
+``parametric``  the grey-box baseline: nominal physics plus online re-identification of its
+                parameters alone, :func:`~gp_agents.learners.parametric_rls` (recursive least
+                squares on the parameter sensitivities, no GP), linearized per node
+==============  ==============================================================================
 
 Each recipe resolves its own coupled settings (the robust learner's sensitivity columns come
 from the agent's own residual), so ``make_mpc(env, recipe, scheme=...)`` is all it takes; any
@@ -32,7 +35,7 @@ from typing import Any
 import gymnasium as gym
 
 import gp_envs
-from gp_agents.learners.recipes import online_ssgp, parametric_ssgp
+from gp_agents.learners.recipes import online_ssgp, parametric_rls, parametric_ssgp
 from gp_agents.mpc.blackbox import BlackBoxModel
 from gp_agents.mpc.controller import PseudospectralMPC
 from gp_agents.mpc.settings import RTI, SQP, Converged, Residual, scheme_settings
@@ -50,6 +53,9 @@ RECIPES: dict[str, str] = {
               "deploy",
     "blackbox": "no physics prior (GP-MPC's baseline): kinematics only, an online SSGP learns "
                 "every acceleration from the data, linearized per node",
+    "parametric": "grey-box baseline: nominal physics + recursive least squares on the parameter "
+                  "sensitivities (its parameters re-identified online, no GP), linearized per "
+                  "node",
 }
 """Every recipe name with its one-line description."""
 
@@ -63,6 +69,8 @@ input scales fitted on a few samples are refitted as the data double, up to 100 
 RECIPE_RTI: Mapping[str, Mapping[str, Mapping[str, Any]]] = {
     "robust": {"dubins": {"levenberg_marquardt": 1.0,
                           "recovery_iterations": RECOVERY_ITERATIONS}},
+    "parametric": {"dubins": {"levenberg_marquardt": 1.0,
+                              "recovery_iterations": RECOVERY_ITERATIONS}},
 }
 """Real-time-iteration settings a recipe sets on a system (recipe -> system name -> fields of
 :class:`~gp_agents.mpc.settings.RTI`) where the system's tuning
@@ -70,7 +78,9 @@ RECIPE_RTI: Mapping[str, Mapping[str, Mapping[str, Any]]] = {
 robust recipe on the Dubins vehicle: a model close to the truth moves its plan little from one
 period to the next and takes a heavier damping (``mu`` = 1, which removes its rejected steps,
 the controls flipping from bound to bound in the first seconds) and the recovery, which the
-other recipes, whose plans must be corrected more at every period, do not."""
+other recipes, whose plans must be corrected more at every period, do not. The parametric
+recipe, the robust recipe's data and schemes with its parametric part alone (the Dubins rates
+are the sensitivities times the parameter errors exactly), takes the same."""
 
 DEFAULT_RECIPE = "robust"
 """The recipe of ``make_mpc(env)``."""
@@ -111,6 +121,10 @@ def recipe_settings(recipe: str, scheme: str | Converged | SQP | RTI | None = No
         out.update(learner=parametric_ssgp(), residual=Residual(sensitivities=True))
         if isinstance(settings, Converged | SQP):  # the RTI takes the system's tuned term
             out["term"] = "linearized"
+    elif recipe == "parametric":  # the robust recipe's data and schemes, the learner alone
+        out.update(learner=parametric_rls(), residual=Residual(sensitivities=True))
+        if isinstance(settings, Converged | SQP):
+            out["term"] = "linearized"
     elif recipe == "blackbox":
         out.update(learner=online_ssgp(linear_features=BLACKBOX_LINEAR_FEATURES),
                    residual=Residual(refit_until=BLACKBOX_REFIT_UNTIL))
@@ -127,8 +141,8 @@ def make_mpc(env: gym.Env, recipe: str = DEFAULT_RECIPE, *,
     Args:
         env: a ``gp_envs`` environment (``gym.make``), or any Gymnasium env given a nominal
             model by :func:`gp_envs.wrap` (found through the wrapper chain).
-        recipe: ``"robust"`` (default), ``"paper"``, ``"nominal"``, ``"oracle"`` or
-            ``"blackbox"``.
+        recipe: ``"robust"`` (default), ``"paper"``, ``"nominal"``, ``"oracle"``,
+            ``"blackbox"`` or ``"parametric"``.
         scheme: ``"converged"`` (default), ``"sqp"``, ``"rti"``, ``"rti-split"`` or a
             :class:`~gp_agents.mpc.settings.Converged` / :class:`~gp_agents.mpc.settings.RTI`.
         **overrides: constructor settings of
@@ -151,7 +165,7 @@ def make_mpc(env: gym.Env, recipe: str = DEFAULT_RECIPE, *,
     settings = recipe_settings(recipe, scheme, model.name)
     if "learner" in overrides and settings["learner"] is None and overrides["learner"] is not None:
         raise ValueError(f"recipe {recipe!r} learns nothing: it takes no learner (the learning "
-                         f"recipes: 'robust', 'paper', 'blackbox')")
+                         f"recipes: 'robust', 'paper', 'blackbox', 'parametric')")
     if "config" in overrides:
         raise TypeError("make_mpc takes the settings it overrides as keywords (horizon=, "
                         "scheme=, term=, residual=, constraints=); for a whole MPCConfig, "
