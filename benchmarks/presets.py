@@ -487,7 +487,7 @@ tuning (its study, ``benchmarks/studies/data_efficiency.py``, tuned on seeds 0-1
 DATA_EFFICIENCY_N_INIT = (0, 5, 10, 20, 50, 100, 200)
 """Initial samples of the learning recipes (0: learned from the first step, planning with the
 model alone until the first transition: ``agent.pretrain(None)``)."""
-DATA_EFFICIENCY_LEARNERS = ("robust-mpc", "paper-mpc", "blackbox-mpc")
+DATA_EFFICIENCY_LEARNERS = ("robust-mpc", "paper-mpc", "blackbox-mpc", "parametric-mpc")
 """The learning recipes of the data-efficiency preset (nominal and oracle are its references)."""
 DATA_EFFICIENCY_ENVS = (("pilco_cartpole", "pilco"), ("cartpole", "online"),
                         ("pendulum", "damped"), ("quadrotor", "online"), ("dubins", "paper"))
@@ -527,7 +527,7 @@ OWN_ENV_SEEDS = tuple(range(2000, 2010))
 """Evaluation seeds of the own-env preset: used by no other preset and for no tuning (the
 choices it rests on were made on Pendulum-v1 seeds 1000-1009 and DMC cart-pole seeds 0-9:
 ``docs/studies/own_env.md``)."""
-OWN_ENV_LEARNERS = ("robust-mpc", "paper-mpc", "blackbox-mpc")
+OWN_ENV_LEARNERS = ("robust-mpc", "paper-mpc", "blackbox-mpc", "parametric-mpc")
 """The learning recipes of the own-env preset."""
 
 
