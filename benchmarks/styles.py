@@ -87,6 +87,7 @@ _SAC = "#9467BD"  # purple
 _PPO = "#BCBD22"  # olive
 _TQC = "#E377C2"  # pink
 _BLACKBOX = "#8C6D31"  # dark olive brown: the no-prior model
+_PARAMETRIC_RLS = "#98DF8A"  # light green: the parametric part alone, no GP
 
 STYLES: dict[str, Style] = {
     # nominal: thick and underneath; oracle: thin and on top (the two often coincide)
@@ -138,6 +139,11 @@ STYLES: dict[str, Style] = {
     "paper-mpc@sqp": Style(_SSGP, SQP_SCHEME, "$Y$"),
     "robust-mpc@sqp": Style(_SSGP_LINEARIZED_PARAMETRIC, SQP_SCHEME, "$Q$"),
     "blackbox-mpc@sqp": Style(_BLACKBOX, SQP_SCHEME, "$C$"),
+    # the grey-box baseline: recursive least squares on the parameter sensitivities, no GP
+    "parametric-mpc": Style(_PARAMETRIC_RLS, RECEDING, "$j$"),
+    "parametric-mpc@rti": Style(_PARAMETRIC_RLS, RTI, "$G$"),
+    "parametric-mpc@rti-split": Style(_PARAMETRIC_RLS, RTI, "$H$"),
+    "parametric-mpc@sqp": Style(_PARAMETRIC_RLS, SQP_SCHEME, "$J$"),
     "sac": Style(_SAC, RECEDING, "*"),
     "ppo": Style(_PPO, RECEDING, "X"),
     "tqc": Style(_TQC, RECEDING, "$T$"),
