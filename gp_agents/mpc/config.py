@@ -211,7 +211,15 @@ def _check_combination(model: ControlModel, learner: Any, schedule: RecedingHori
         if residual != Residual():
             raise ValueError(f"residual={residual!r} configures the learned residual; this MPC "
                              f"has no learner")
-    elif residual.refit_until and (residual.learn_online is False or not schedule.learns):
+    if isinstance(scheme, Converged) and scheme.nominal_above is not None and (
+            learner is None or not (isinstance(term, LinearizedGP) or (
+                isinstance(term, str) and issubclass(LEARNED_TERMS.get(term, LearnedTerm),
+                                                     LinearizedGP)))):
+        raise ValueError("Converged(nominal_above=...) falls back from a linearized learned "
+                         "term's plan to the nominal model's: it needs a learner and "
+                         "term='linearized' (or another LinearizedGP)")
+    if learner is not None and residual.refit_until and (
+            residual.learn_online is False or not schedule.learns):
         raise ValueError("Residual(refit_until=...) refits the learner on the transitions it "
                          "learns online: it does not apply without online learning")
     if learner is not None and residual.learn_online:

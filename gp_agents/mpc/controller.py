@@ -243,8 +243,8 @@ class PseudospectralMPC:
         offset = (self._step - plan.step) * self.model.dt
         self.diagnostics.append(StepRecord(
             step=self._step, learner_samples=self._learner_samples(), action=u.copy(),
-            residual_on=self.learner is not None and bool(getattr(self.learner,
-                                                                  "residual_on_", True)),
+            residual_on=self.learner is not None and not record.get("nominal_plan", False)
+            and bool(getattr(self.learner, "residual_on_", True)),
             act_time=time.perf_counter() - start, plan_t=plan.solution.t - offset,
             plan_x=plan.solution.x, **record))
         if record["replanned"]:

@@ -77,6 +77,9 @@ class SolveCounts:
         sqp_iterations: iterations of the SQP scheme (:class:`~gp_agents.mpc.settings.SQP`).
         sqp_fallbacks: SQP plans that did not converge within the budget and took the IPOPT
             fallback.
+        nominal_plans: converged plans replaced by the nominal model's plan because their
+            linearized learned term was too far from the learner at the plan (the term's
+            ``nominal_above``).
     """
 
     builds: int = 0
@@ -94,6 +97,7 @@ class SolveCounts:
     unprepared: int = 0
     sqp_iterations: int = 0
     sqp_fallbacks: int = 0
+    nominal_plans: int = 0
 
 
 HEALTH_KEYS = ("replans", "rti_steps", "rti_recovered", "rti_recovery_iterations",
@@ -192,9 +196,12 @@ class StepRecord:
             ``"Solve_Succeeded"``), for people to read; never parsed (``status`` and
             ``capped`` say what happened).
         capped: the call's final converged solve ran into its iteration cap.
-        residual_on: the learned residual was in use after this call's update (False without
-            a learner, and while a learner's nominal fallback has switched it off because it
-            predicted the newest samples worse than the nominal model).
+        residual_on: the learned residual was in use in the current plan (False without a
+            learner, while a learner's nominal fallback has switched it off because it
+            predicted the newest samples worse than the nominal model, and for a nominal plan).
+        nominal_plan: this call's plan is the nominal model's, taken because the linearized
+            learned term was too far from the learner at the plan (the term's
+            ``nominal_above``).
     """
 
     step: int
@@ -215,6 +222,7 @@ class StepRecord:
     residual_on: bool = False
     solver_status: str = ""
     capped: bool = False
+    nominal_plan: bool = False
 
 
 def records_to_arrays(records: list[StepRecord]) -> dict[str, np.ndarray]:

@@ -17,6 +17,7 @@ import numpy as np
 
 from gp_agents.mpc.active_set import ActiveSetQP
 from gp_agents.mpc.diagnostics import SolveCounts
+from gp_agents.mpc.guard import NominalGuardPlanner, check_nominal_above
 from gp_agents.mpc.ocp import Constraints, Mesh
 from gp_agents.mpc.planner import Planner
 from gp_agents.mpc.planning_model import PlanningModel
@@ -44,6 +45,10 @@ class Converged:
         warm_start_duals: a warm solve also starts from the previous solve's multipliers, with
             IPOPT's warm-start options (IPOPT only). Off by default: on the oracle cart pole it
             stays in the previous plan's basin of the swing-up and costs more.
+        nominal_above: with a linearized learned term, also plan with the nominal model at
+            every replan and act on its plan where the learned plan's expansion error exceeds
+            this many tolerances (:class:`~gp_agents.mpc.guard.NominalGuardPlanner`: one more
+            solve per replan); None: off. Not for an RTI's or SQP's fallback solves.
     """
 
     solver: str = "ipopt"
@@ -51,6 +56,7 @@ class Converged:
     max_iterations: int | None = None
     jit: bool = False
     warm_start_duals: bool = False
+    nominal_above: float | None = None
 
     name = "converged"
 
@@ -78,6 +84,7 @@ class Converged:
         if self.warm_start_duals and self.solver != "ipopt":
             raise ValueError(f"Converged: warm_start_duals uses IPOPT's warm-start options; "
                              f"it does not apply to solver {self.solver!r}")
+        check_nominal_above(self.nominal_above)
 
     def planner_settings(self) -> dict[str, Any]:
         """Keyword settings of :class:`~gp_agents.mpc.planner.Planner`."""
@@ -88,7 +95,11 @@ class Converged:
 
     def planner(self, planning: PlanningModel, mesh: Mesh, constraints: Constraints,
                 counts: SolveCounts | None = None) -> Planner:
-        """The planner of this scheme: every plan a converged solve."""
+        """The planner of this scheme: every plan a converged solve (beside the nominal
+        model's with ``nominal_above``)."""
+        if self.nominal_above is not None:
+            return NominalGuardPlanner(planning, mesh, constraints, above=self.nominal_above,
+                                       counts=counts, **self.planner_settings())
         return Planner(planning, mesh, constraints, counts=counts, **self.planner_settings())
 
 
@@ -139,6 +150,9 @@ class RTI:
         if not isinstance(self.fallback, Converged):
             raise TypeError(f"RTI: fallback must be a Converged, got "
                             f"{type(self.fallback).__name__}")
+        if self.fallback.nominal_above is not None:
+            raise ValueError("RTI: the fallback's nominal_above does not apply (the fallback "
+                             "solves one plan at a time); use scheme=Converged(nominal_above=...)")
 
     @property
     def name(self) -> str:
@@ -200,6 +214,9 @@ class SQP:
         if not isinstance(self.fallback, Converged):
             raise TypeError(f"SQP: fallback must be a Converged, got "
                             f"{type(self.fallback).__name__}")
+        if self.fallback.nominal_above is not None:
+            raise ValueError("SQP: the fallback's nominal_above does not apply (the fallback "
+                             "solves one plan at a time); use scheme=Converged(nominal_above=...)")
 
     def planner(self, planning: PlanningModel, mesh: Mesh, constraints: Constraints,
                 counts: SolveCounts | None = None) -> SQPPlanner:
