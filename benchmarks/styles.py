@@ -88,6 +88,7 @@ _PPO = "#BCBD22"  # olive
 _TQC = "#E377C2"  # pink
 _BLACKBOX = "#8C6D31"  # dark olive brown: the no-prior model
 _PARAMETRIC_RLS = "#98DF8A"  # light green: the parametric part alone, no GP
+_GUARDED = "#FF9896"  # light red: the robust recipe with the plan-level nominal fallback
 
 STYLES: dict[str, Style] = {
     # nominal: thick and underneath; oracle: thin and on top (the two often coincide)
@@ -141,6 +142,7 @@ STYLES: dict[str, Style] = {
     "blackbox-mpc@sqp": Style(_BLACKBOX, SQP_SCHEME, "$C$"),
     # the grey-box baseline: recursive least squares on the parameter sensitivities, no GP
     "parametric-mpc": Style(_PARAMETRIC_RLS, RECEDING, "$j$"),
+    "robust-mpc-guarded": Style(_GUARDED, RECEDING, "$u$"),
     "parametric-mpc@rti": Style(_PARAMETRIC_RLS, RTI, "$G$"),
     "parametric-mpc@rti-split": Style(_PARAMETRIC_RLS, RTI, "$H$"),
     "parametric-mpc@sqp": Style(_PARAMETRIC_RLS, SQP_SCHEME, "$J$"),

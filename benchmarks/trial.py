@@ -324,8 +324,10 @@ def _episode_result(spec: TrialSpec, env: Any, built: BuiltController,
         "rti_recovery_iterations": (int(agent.health()["rti_recovery_iterations"]) if is_mpc
                                     else float("nan")),
         "rti_rejected": int(agent.health()["rti_rejected"]) if is_mpc else float("nan"),
-        # steps whose learned residual was switched off by the learner's nominal fallback
-        # (it predicted the newest samples worse than the nominal model; NaN without learning)
+        # steps whose learned residual was not in the plan: switched off by the learner's
+        # nominal fallback (it predicted the newest samples worse than the nominal model), or
+        # the learned plan replaced by the nominal one (Converged(nominal_above=...)); NaN
+        # without learning
         "residual_off_steps": (int(np.sum(~np.asarray(agent.diagnostics_arrays()
                                                       ["residual_on"], bool)))
                                if is_mpc and learning and agent.diagnostics else float("nan")),

@@ -1,0 +1,123 @@
+"""Does a plan-level nominal fallback keep the robust recipe from ending below the nominal MPC
+on a truth outside its model family, and what does it cost inside it? (issue: your env, your
+simulator; decision record ``docs/studies/plan_guard.md``).
+
+``robust-mpc-guarded`` is the robust recipe with ``Converged(nominal_above=1)``
+(:class:`gp_agents.mpc.guard.NominalGuardPlanner`): it plans with the nominal model beside the
+learned one and acts on the nominal plan where the learned plan's linearization error exceeds
+its tolerance. The threshold is the term's own tolerance (1), fixed before the evaluation
+seeds were run; the tuning seeds 0-9 on the friction truth are where the mechanism was found.
+
+Groups (each its own folder under ``benchmarks/results/plan-guard``, the CLI's trials):
+
+- ``tuning``: DMC cart-pole with Coulomb friction, seeds 0-9 (the own-env tuning seeds);
+- ``outside``: the same and DMC's plain swing-up, evaluation seeds 2000-2009 (the own-env
+  preset's), 200 initial samples collected as a user does;
+- ``outside-pendulum``: Gymnasium's Pendulum-v1 with the 60%-light nominal, seeds 2000-2009;
+- ``cartpole``, ``quadrotor``, ``dubins``: the package's own systems, fixed and time-varying
+  truth, the robustness preset's evaluation seeds 200-209.
+
+Run: ``OMP_NUM_THREADS=1 python -m benchmarks.studies.plan_guard [--workers 2]`` (resumable:
+finished trials are kept); writes ``benchmarks/results/plan-guard/tables.md``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from collections import defaultdict
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from benchmarks.presets import custom_experiment
+from benchmarks.report.stats import mean_ci, wilson_ci
+from benchmarks.runner import run_trials
+from benchmarks.trial import Cell, TrialSpec
+
+ROOT = Path(__file__).resolve().parents[2]
+OUT = ROOT / "benchmarks" / "results" / "plan-guard"
+GUARDED = "robust-mpc-guarded"
+OUTSIDE_ENVS = ("dmc-cartpole", "pendulum-v1")
+"""Envs whose reward is their own (the table shows the return; elsewhere the task's cost)."""
+
+_ALL = ("nominal-mpc", "robust-mpc", GUARDED)
+_PAIR = ("robust-mpc", GUARDED)
+GROUPS: dict[str, tuple[tuple[str, ...], str, tuple[str, ...] | None, range, Cell]] = {
+    "tuning": (_ALL, "dmc-cartpole", ("swingup-friction",), range(0, 10), Cell(data="own")),
+    "outside": (_ALL, "dmc-cartpole", ("swingup-friction", "swingup"), range(2000, 2010),
+                Cell(data="own")),
+    "outside-pendulum": (_PAIR, "pendulum-v1", None, range(2000, 2010), Cell(data="own")),
+    "cartpole": (_PAIR, "cartpole", ("online", "online-wear"), range(200, 210), Cell()),
+    "quadrotor": (_PAIR, "quadrotor", ("online", "online-payload"), range(200, 210), Cell()),
+    "dubins": (_PAIR, "dubins", ("paper", "paper-wear"), range(200, 210), Cell()),
+}
+"""folder -> (controllers, env, scenarios (None: the default), seeds, cell)."""
+
+
+def specs(group: str) -> list[TrialSpec]:
+    """The trials of ``group`` exactly as the CLI's custom grid makes them."""
+    controllers, env, scenarios, seeds, cell = GROUPS[group]
+    exp = custom_experiment(list(controllers), [env], list(scenarios) if scenarios else None,
+                            list(seeds), None, cell)
+    return list(exp.specs)
+
+
+def _rows(group: str) -> list[dict[str, Any]]:
+    from benchmarks.report.load import load_trials, metric_rows
+
+    return [r for r in metric_rows(load_trials(OUT / group, specs(group)).values())
+            if r.get("status") == "ok"]
+
+
+def table(groups: list[str]) -> str:
+    """One row per (group, env, scenario, controller): success, the return (outside envs) or
+    cost with its 95% interval and its worst seed, the steps without the learned residual, and
+    the act median."""
+    lines = ["| group | env | scenario | controller | n | success | mean return or cost "
+             "[95%] | worst seed | steps without the learned residual (mean) | act median "
+             "(ms) |", "|---|---|---|---|---:|---|---:|---:|---:|---:|"]
+    for group in groups:
+        by: dict[tuple[str, str, str], list[dict[str, Any]]] = defaultdict(list)
+        for r in _rows(group):
+            by[(r["env"], r["scenario"], r["controller"])].append(r)
+        for (env, scenario, controller), rows in sorted(by.items()):
+            outside = env in OUTSIDE_ENVS
+            values = np.array([float(r["return"] if outside else r["cost"]) for r in rows])
+            k, n = sum(bool(r["success"]) for r in rows), len(rows)
+            lo, hi = wilson_ci(k, n)
+            m_lo, m_hi = mean_ci(values)
+            worst = values.min() if outside else values.max()
+            off = [float(r["residual_off_steps"]) for r in rows]
+            off_text = "-" if all(math.isnan(v) for v in off) else f"{np.nanmean(off):.1f}"
+            act = float(np.median([float(r["act_median_ms"]) for r in rows]))
+            kind = "return" if outside else "cost"
+            lines.append(
+                f"| {group} | {env} | `{scenario}` | `{controller}` | {n} | {k}/{n} "
+                f"[{lo:.2f}, {hi:.2f}] | {kind} {values.mean():.2f} [{m_lo:.2f}, {m_hi:.2f}] | "
+                f"{worst:.2f} | {off_text} | {act:.1f} |")
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--workers", type=int, default=1)
+    parser.add_argument("--groups", default=",".join(GROUPS),
+                        help=f"comma-separated groups (default all: {', '.join(GROUPS)})")
+    args = parser.parse_args(argv)
+    groups = [g for g in args.groups.split(",") if g]
+    for g in groups:
+        if g not in GROUPS:
+            parser.error(f"unknown group {g!r}; groups: {', '.join(GROUPS)}")
+        run_trials(specs(g), OUT / g, workers=args.workers)
+    text = ("# The plan-level nominal fallback against the robust recipe\n\n"
+            "`OMP_NUM_THREADS=1 python -m benchmarks.studies.plan_guard --workers 2`\n\n"
+            + table(groups))
+    (OUT / "tables.md").write_text(text)
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
