@@ -196,3 +196,17 @@ def test_blackbox_controller_has_a_style_and_a_label():
     assert CONTROLLERS["blackbox-mpc"].label == "black-box MPC"
     assert style("blackbox-mpc") != style("robust-mpc")
     assert online_ssgp(linear_features=True).linear_features is True
+
+
+@pytest.mark.parametrize(("rate", "says"), [(1.0, "the prior."), (0.9, "the prior."),
+                                            (0.5, "the prior and learning together."),
+                                            (0.1, "learning."), (0.0, "learning.")])
+def test_the_report_says_what_a_table_measures_from_its_nominal_row(rate, says):
+    from benchmarks.report.sections_data import what_it_measures
+
+    rows = [{"controller": "robust-mpc", "episodes": 10, "success_rate": 1.0},
+            {"controller": "nominal-mpc", "episodes": 10, "success_rate": rate}]
+    text = what_it_measures(rows)
+    assert text.startswith(f"**What this table measures: {says}**")
+    assert f"succeeds on {round(10 * rate)} of 10 seeds" in text
+    assert what_it_measures(rows[:1]) == ""  # no nominal row: nothing said

@@ -77,12 +77,43 @@ def section_data_efficiency(ctx: Context, exp: Experiment) -> list[str]:
         lines += ["", f"### {_env_title(env, scenario)}", "", f"![data efficiency]({name})", ""]
         lines += markdown_table(header, body, ["---", "---:"] + ["---:"] * (len(header) - 2))
         lines += controller_legend(r["controller"] for r in rows)
+        measures = what_it_measures(rows)
+        if measures:
+            lines += ["", measures]
         anchors = PUBLISHED_ANCHORS.get(env, ())
         if anchors:
             lines += ["", "Published figures (cited, not measured here) and how their setup "
                       "differs:", ""]
             lines += [f"- **{a.method}** ({a.source}): {a.setup}." for a in anchors]
     return lines
+
+
+PRIOR_SUCCEEDS = 0.9
+"""A nominal MPC success rate from which a data-efficiency table measures the physics prior."""
+PRIOR_FAILS = 0.1
+"""One up to which it measures what the learning recipes learn."""
+
+
+def what_it_measures(rows: list[dict[str, Any]]) -> str:
+    """The sentence saying what a data-efficiency table of summary ``rows`` measures, from its
+    nominal MPC row (the physics prior with no data): the prior where the nominal MPC alone
+    succeeds (success rate >= :data:`PRIOR_SUCCEEDS`), learning where it fails (<=
+    :data:`PRIOR_FAILS`), both in between; empty without a nominal row."""
+    nominal = [r for r in rows if r["controller"] == "nominal-mpc" and r["episodes"]]
+    if not nominal:
+        return ""
+    r = nominal[0]
+    n = int(r["episodes"])
+    k = round(float(r["success_rate"]) * n)
+    said = f"The nominal MPC alone, with no data, succeeds on {k} of {n} seeds here"
+    if r["success_rate"] >= PRIOR_SUCCEEDS:
+        return (f"**What this table measures: the prior.** {said}: the learning recipes' "
+                "figures measure the physics prior they start from, not what they learn.")
+    if r["success_rate"] <= PRIOR_FAILS:
+        return (f"**What this table measures: learning.** {said}: what the learning recipes "
+                "reach beyond it, they learned from the data.")
+    return (f"**What this table measures: the prior and learning together.** {said}: part of "
+            "the learning recipes' figures is the prior's.")
 
 
 @functools.cache
