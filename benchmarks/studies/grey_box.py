@@ -5,12 +5,14 @@ every baseline at its best; record ``docs/studies/grey_box.md``).
 ``parametric-mpc`` is the robust recipe's data, term and scheme with its learner's parametric
 part alone (:func:`gp_agents.parametric_rls`: recursive least squares on the parameter
 sensitivities, no Fourier features, no change detector, nominal fallback or input saturation).
-It runs on exactly the robustness preset's trials of the robust recipe at its 200 initial
-samples (``ssgp-mpc-linearized-parametric``, committed in
-``benchmarks/results/robustness-parametric``): fixed, randomized (with the controlled system's
-data and with another draw's), perturbed, noisy and changing systems, evaluation seeds 200-219
-(the Dubins vehicle 200-249). Nothing is tuned here. Paired by trial: success with Wilson
-intervals, mean cost with BCa intervals, and where the two differ beyond their intervals.
+It runs on exactly the committed trials of the robust recipe at its 200 initial samples: the
+``recommended`` preset's (randomized truth, seeds 400-419, the Dubins vehicle 400-449;
+``benchmarks/results/recommended``) and the robustness preset's
+(``ssgp-mpc-linearized-parametric`` in ``benchmarks/results/robustness-parametric``: fixed,
+randomized with the controlled system's data and with another draw's, perturbed, noisy and
+changing systems, seeds 200-219, the Dubins vehicle 200-249). Nothing is tuned here. Paired
+by trial: success with Wilson intervals, mean cost with BCa intervals, and where the two differ
+beyond their intervals.
 
 Run: ``OMP_NUM_THREADS=1 python -m benchmarks.studies.grey_box [--workers 2]`` (resumable:
 finished trials are kept); writes ``benchmarks/results/grey-box/{metrics.csv,tables.md}``.
@@ -33,17 +35,23 @@ from benchmarks.trial import N_INITIAL_POINTS, TrialSpec
 
 ROOT = Path(__file__).resolve().parents[2]
 OUT = ROOT / "benchmarks" / "results" / "grey-box"
-REFERENCE = ROOT / "benchmarks" / "results" / "robustness-parametric" / "metrics.csv"
-ROBUST = "ssgp-mpc-linearized-parametric"
-"""The robust recipe's name in the committed robustness run (an alias of ``robust-mpc``)."""
+REFERENCES = {"recommended": "robust-mpc",
+              "robustness-parametric": "ssgp-mpc-linearized-parametric"}
+"""Committed runs of the robust recipe (folders under ``benchmarks/results``) and its name in
+each (the robustness run's is an alias of ``robust-mpc``)."""
 GREY_BOX = "parametric-mpc"
 
 
-def specs() -> list[tuple[TrialSpec, TrialSpec]]:
-    """(the committed robust-recipe trial, the same trial with the grey-box baseline)."""
-    return [(spec, dataclasses.replace(spec, controller=GREY_BOX))
-            for spec in PRESETS["robustness"].experiments[0].specs
-            if spec.controller == ROBUST and spec.n_init == N_INITIAL_POINTS]
+def specs() -> list[tuple[str, TrialSpec, TrialSpec]]:
+    """(reference folder, the committed robust-recipe trial, the same trial with the grey-box
+    baseline)."""
+    out = []
+    for folder, preset in (("recommended", "recommended"),
+                           ("robustness-parametric", "robustness")):
+        out += [(folder, spec, dataclasses.replace(spec, controller=GREY_BOX))
+                for spec in PRESETS[preset].experiments[0].specs
+                if spec.controller == REFERENCES[folder] and spec.n_init == N_INITIAL_POINTS]
+    return out
 
 
 def _rows(path: Path) -> dict[str, dict[str, str]]:
@@ -60,19 +68,21 @@ def _verdict(a: tuple[float, float], b: tuple[float, float], lower_better: bool)
     return "overlap"
 
 
-def tables(pairs: list[tuple[TrialSpec, TrialSpec]], ours: dict[str, dict[str, str]]) -> str:
-    """One row per (env, scenario, cell), paired by trial."""
-    ref = _rows(REFERENCE)
-    groups: dict[tuple[str, str, str], list[tuple[dict, dict]]] = defaultdict(list)
-    for robust, grey in pairs:
-        a, b = ref.get(robust.key), ours.get(grey.key)
+def tables(pairs: list[tuple[str, TrialSpec, TrialSpec]], ours: dict[str, dict[str, str]]
+           ) -> str:
+    """One row per (run, env, scenario, cell), paired by trial."""
+    refs = {folder: _rows(ROOT / "benchmarks" / "results" / folder / "metrics.csv")
+            for folder in REFERENCES}
+    groups: dict[tuple[str, str, str, str], list[tuple[dict, dict]]] = defaultdict(list)
+    for folder, robust, grey in pairs:
+        a, b = refs[folder].get(robust.key), ours.get(grey.key)
         if a is None or b is None or b.get("status") != "ok" or a.get("status") != "ok":
             continue
-        groups[(a["env"], a["scenario"], a["cell"])].append((a, b))
-    lines = ["| env | scenario | cell | n | success robust | success grey box | success ahead | "
-             "mean cost robust | mean cost grey box | cost ahead |",
-             "|---|---|---|---:|---|---|---|---:|---:|---|"]
-    for (env, scenario, cell), items in sorted(groups.items()):
+        groups[(folder, a["env"], a["scenario"], a["cell"])].append((a, b))
+    lines = ["| run | env | scenario | cell | n | success robust | success grey box | "
+             "success ahead | mean cost robust | mean cost grey box | cost ahead |",
+             "|---|---|---|---|---:|---|---|---|---:|---:|---|"]
+    for (folder, env, scenario, cell), items in sorted(groups.items()):
         n = len(items)
         k = [sum(r["success"] == "True" for r in side) for side in zip(*items, strict=True)]
         cost = [np.array([float(r["cost"]) for r in side]) for side in zip(*items, strict=True)]
@@ -81,7 +91,7 @@ def tables(pairs: list[tuple[TrialSpec, TrialSpec]], ours: dict[str, dict[str, s
 
         s = [f"{k[i]}/{n} [{s_ci[i][0]:.2f}, {s_ci[i][1]:.2f}]" for i in range(2)]
         c = [f"{cost[i].mean():.3f} [{c_ci[i][0]:.3f}, {c_ci[i][1]:.3f}]" for i in range(2)]
-        lines.append(f"| {env} | `{scenario}` | {cell} | {n} | {s[0]} | {s[1]} | "
+        lines.append(f"| {folder} | {env} | `{scenario}` | {cell} | {n} | {s[0]} | {s[1]} | "
                      f"{_verdict(s_ci[0], s_ci[1], lower_better=False)} | {c[0]} | {c[1]} | "
                      f"{_verdict(c_ci[0], c_ci[1], lower_better=True)} |")
     return "\n".join(lines) + "\n"
@@ -93,16 +103,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=OUT)
     args = parser.parse_args(argv)
     pairs = specs()
-    run_trials([grey for _, grey in pairs], args.out, workers=args.workers)
+    run_trials([grey for _, _, grey in pairs], args.out, workers=args.workers)
     from benchmarks.report.load import load_trials, metric_rows
 
-    rows = metric_rows(load_trials(args.out, [grey for _, grey in pairs]).values())
+    rows = metric_rows(load_trials(args.out, [grey for _, _, grey in pairs]).values())
     ours = {r["key"]: {k: str(v) for k, v in r.items()} for r in rows}
     with (args.out / "metrics.csv").open("w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
-    text = ("# The grey-box baseline against the robust recipe (robustness cells)\n\n"
+    text = ("# The grey-box baseline against the robust recipe\n\n"
             "`OMP_NUM_THREADS=1 python -m benchmarks.studies.grey_box --workers 2`\n\n"
             + tables(pairs, ours))
     (args.out / "tables.md").write_text(text)
