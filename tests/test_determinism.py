@@ -22,6 +22,9 @@ SPECS = (
     TrialSpec("episode", "cartpole", "online", "ssgp-mpc-linearized", 1, max_steps=25),
     TrialSpec("episode", "quadrotor", "gp", "nominal-mpc", 0, max_steps=20),
     TrialSpec("episode", "dubins", "paper", "nominal-mpc", 3, max_steps=30),
+    # the SQP scheme (iterations, line search, fallback) and the plan-level nominal fallback
+    TrialSpec("episode", "quadrotor", "online", "robust-mpc@sqp", 0, max_steps=15),
+    TrialSpec("episode", "cartpole", "online", "robust-mpc-guarded", 0, max_steps=15),
 )
 
 
