@@ -21,7 +21,6 @@ finished trials are kept); writes ``benchmarks/results/grey-box/{metrics.csv,tab
 from __future__ import annotations
 
 import argparse
-import csv
 import dataclasses
 from collections import defaultdict
 from pathlib import Path
@@ -30,7 +29,7 @@ import numpy as np
 
 from benchmarks.presets import PRESETS
 from benchmarks.report.stats import mean_ci, wilson_ci
-from benchmarks.runner import run_trials
+from benchmarks.studies.study_runs import read_metrics, run_and_record, write_tables
 from benchmarks.trial import N_INITIAL_POINTS, TrialSpec
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -54,11 +53,6 @@ def specs() -> list[tuple[str, TrialSpec, TrialSpec]]:
     return out
 
 
-def _rows(path: Path) -> dict[str, dict[str, str]]:
-    with path.open() as f:
-        return {r["key"]: r for r in csv.DictReader(f)}
-
-
 def _verdict(a: tuple[float, float], b: tuple[float, float], lower_better: bool) -> str:
     """Which side is ahead where the intervals do not overlap."""
     if a[1] < b[0]:
@@ -71,7 +65,7 @@ def _verdict(a: tuple[float, float], b: tuple[float, float], lower_better: bool)
 def tables(pairs: list[tuple[str, TrialSpec, TrialSpec]], ours: dict[str, dict[str, str]]
            ) -> str:
     """One row per (run, env, scenario, cell), paired by trial."""
-    refs = {folder: _rows(ROOT / "benchmarks" / "results" / folder / "metrics.csv")
+    refs = {folder: read_metrics(ROOT / "benchmarks" / "results" / folder / "metrics.csv")
             for folder in REFERENCES}
     groups: dict[tuple[str, str, str, str], list[tuple[dict, dict]]] = defaultdict(list)
     for folder, robust, grey in pairs:
@@ -103,19 +97,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=OUT)
     args = parser.parse_args(argv)
     pairs = specs()
-    run_trials([grey for _, _, grey in pairs], args.out, workers=args.workers)
-    from benchmarks.report.load import load_trials, metric_rows
-
-    rows = metric_rows(load_trials(args.out, [grey for _, _, grey in pairs]).values())
-    ours = {r["key"]: {k: str(v) for k, v in r.items()} for r in rows}
-    with (args.out / "metrics.csv").open("w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
-    text = ("# The grey-box baseline against the robust recipe\n\n"
-            "`OMP_NUM_THREADS=1 python -m benchmarks.studies.grey_box --workers 2`\n\n"
-            + tables(pairs, ours))
-    (args.out / "tables.md").write_text(text)
+    ours = run_and_record([grey for _, _, grey in pairs], args.out, args.workers)
+    text = write_tables(args.out, "The grey-box baseline against the robust recipe",
+                        "OMP_NUM_THREADS=1 python -m benchmarks.studies.grey_box --workers 2",
+                        tables(pairs, ours))
     print(text)
     return 0
 

@@ -27,13 +27,12 @@ import argparse
 import math
 from collections import defaultdict
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
 from benchmarks.presets import custom_experiment
 from benchmarks.report.stats import mean_ci, wilson_ci
-from benchmarks.runner import run_trials
+from benchmarks.studies.study_runs import run_and_record, write_tables
 from benchmarks.trial import Cell, TrialSpec
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -64,28 +63,23 @@ def specs(group: str) -> list[TrialSpec]:
     return list(exp.specs)
 
 
-def _rows(group: str) -> list[dict[str, Any]]:
-    from benchmarks.report.load import load_trials, metric_rows
-
-    return [r for r in metric_rows(load_trials(OUT / group, specs(group)).values())
-            if r.get("status") == "ok"]
-
-
-def table(groups: list[str]) -> str:
+def table(rows: dict[str, dict[str, dict[str, str]]]) -> str:
     """One row per (group, env, scenario, controller): success, the return (outside envs) or
     cost with its 95% interval and its worst seed, the steps without the learned residual, and
-    the act median."""
+    the act median; ``rows``: each group's metrics by trial key (:func:`run_and_record`)."""
     lines = ["| group | env | scenario | controller | n | success | mean return or cost "
              "[95%] | worst seed | steps without the learned residual (mean) | act median "
              "(ms) |", "|---|---|---|---|---:|---|---:|---:|---:|---:|"]
-    for group in groups:
-        by: dict[tuple[str, str, str], list[dict[str, Any]]] = defaultdict(list)
-        for r in _rows(group):
+    for group, metrics in rows.items():
+        by: dict[tuple[str, str, str], list[dict[str, str]]] = defaultdict(list)
+        for r in metrics.values():
+            if r["status"] != "ok":
+                continue
             by[(r["env"], r["scenario"], r["controller"])].append(r)
         for (env, scenario, controller), rows in sorted(by.items()):
             outside = env in OUTSIDE_ENVS
             values = np.array([float(r["return"] if outside else r["cost"]) for r in rows])
-            k, n = sum(bool(r["success"]) for r in rows), len(rows)
+            k, n = sum(r["success"] == "True" for r in rows), len(rows)
             lo, hi = wilson_ci(k, n)
             m_lo, m_hi = mean_ci(values)
             worst = values.min() if outside else values.max()
@@ -110,11 +104,10 @@ def main(argv: list[str] | None = None) -> int:
     for g in groups:
         if g not in GROUPS:
             parser.error(f"unknown group {g!r}; groups: {', '.join(GROUPS)}")
-        run_trials(specs(g), OUT / g, workers=args.workers)
-    text = ("# The plan-level nominal fallback against the robust recipe\n\n"
-            "`OMP_NUM_THREADS=1 python -m benchmarks.studies.plan_guard --workers 2`\n\n"
-            + table(groups))
-    (OUT / "tables.md").write_text(text)
+    rows = {g: run_and_record(specs(g), OUT / g, args.workers) for g in groups}
+    text = write_tables(OUT, "The plan-level nominal fallback against the robust recipe",
+                        "OMP_NUM_THREADS=1 python -m benchmarks.studies.plan_guard --workers 2",
+                        table(rows))
     print(text)
     return 0
 

@@ -18,7 +18,6 @@ finished trials are kept); writes ``benchmarks/results/sqp-scheme/{metrics.csv,t
 from __future__ import annotations
 
 import argparse
-import csv
 import dataclasses
 import math
 from collections import defaultdict
@@ -28,7 +27,7 @@ import numpy as np
 
 from benchmarks.presets import PRESETS
 from benchmarks.report.stats import wilson_ci
-from benchmarks.runner import run_trials
+from benchmarks.studies.study_runs import read_metrics, run_and_record, write_tables
 from benchmarks.trial import TrialSpec
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -52,15 +51,10 @@ def specs() -> list[tuple[str, TrialSpec, TrialSpec]]:
     return out
 
 
-def _rows(path: Path) -> dict[str, dict[str, str]]:
-    with path.open() as f:
-        return {r["key"]: r for r in csv.DictReader(f)}
-
-
 def tables(pairs: list[tuple[str, TrialSpec, TrialSpec]], ours: dict[str, dict[str, str]]
            ) -> str:
     """The paired comparison, one row per (preset, env, scenario, cell)."""
-    refs = {folder: _rows(ROOT / "benchmarks" / "results" / folder / "metrics.csv")
+    refs = {folder: read_metrics(ROOT / "benchmarks" / "results" / folder / "metrics.csv")
             for folder in REFERENCES}
     groups: dict[tuple[str, str, str, str], list[tuple[dict, dict]]] = defaultdict(list)
     for folder, ipopt, sqp in pairs:
@@ -101,19 +95,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=OUT)
     args = parser.parse_args(argv)
     pairs = specs()
-    run_trials([sqp for _, _, sqp in pairs], args.out, workers=args.workers)
-    from benchmarks.report.load import load_trials, metric_rows
-
-    rows = metric_rows(load_trials(args.out, [sqp for _, _, sqp in pairs]).values())
-    ours = {r["key"]: {k: str(v) for k, v in r.items()} for r in rows}
-    with (args.out / "metrics.csv").open("w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
-    text = ("# The SQP scheme against the converged IPOPT solve (robust recipe)\n\n"
-            "`OMP_NUM_THREADS=1 python -m benchmarks.studies.sqp_scheme`\n\n"
-            + tables(pairs, ours))
-    (args.out / "tables.md").write_text(text)
+    ours = run_and_record([sqp for _, _, sqp in pairs], args.out, args.workers)
+    text = write_tables(args.out,
+                        "The SQP scheme against the converged IPOPT solve (robust recipe)",
+                        "OMP_NUM_THREADS=1 python -m benchmarks.studies.sqp_scheme",
+                        tables(pairs, ours))
     print(text)
     return 0
 
