@@ -4,28 +4,25 @@ plan where the learned plan follows neither model.
 A linearized learned term (:class:`~gp_agents.mpc.gp_linearized.LinearizedGP`) makes the plan
 optimal for its expansion about the previous plan, not for the learner; the expansion's error
 at the new plan's nodes is the step's ``linearization_error`` (in tolerances). Where the learned
-mean bends sharply along the plan, one linearization is far from it at the plan's own nodes and
-the plan follows neither the learned model nor the nominal one. On an outside truth with
-Coulomb friction (a kink in velocity no smooth residual has), the robust recipe's plans did that
-on a third to a half of the steps of the episodes it lost, while the learner predicted the
-newest samples, and whole half-second windows of them, better than the nominal model: the
-learner's own check (:class:`~gp_agents.learners.NominalFallback`) compares predictions and
-cannot see it.
+mean bends sharply along the plan (a smooth fit of a kink such as Coulomb friction's sign), one
+linearization is far from it at the plan's own nodes, and the plan follows neither the learned
+model nor the nominal one. The learner's own check (:class:`~gp_agents.learners.NominalFallback`)
+compares predictions of the newest samples and cannot see this: the learned model can predict
+them better than the nominal one and still bend where the plan goes.
 
 :class:`NominalGuardPlanner` keeps two chains of plans, each warm-started from its own previous
 plan: the learned one (the scheme's converged planner) and the nominal model's (the same mesh,
 constraints and solver, no learned term). At every replan it solves both and acts on the learned
 plan unless its expansion error exceeds ``above`` tolerances (or the learned solve gave no usable
 plan) and the nominal solve succeeded; such a step records ``nominal_plan`` and counts in
-:attr:`~gp_agents.mpc.diagnostics.SolveCounts.nominal_plans`. It costs one more converged solve
-per replan. The decision depends only on the solves' results, never on time.
+:attr:`~gp_agents.mpc.diagnostics.SolveCounts.nominal_plans`. A nominal chain of its own matters:
+a nominal solve started from the learned plan stays in that plan's basin. It costs one more
+converged solve per replan. The decision depends only on the solves' results, never on time.
 
 It is a trade, not a free guard, and off by default: where the nominal model is far from the
-truth (the package's online cart pole), the nominal plans it takes on the swing-up's harder
-steps cost more than the learned plans they replace. Two alternatives did not remove the lost
-episodes on the friction truth: re-solving those steps with the learned model itself in the NLP
-(the exact term), and taking the nominal plan only where the learner predicts it to cost less
-(the learner stood behind its own plans).
+truth, or after the system changed, the nominal plans it takes on the steps whose expansion is
+off do not know what the learner knows, and they cost more than the learned plans they replace
+or miss the task.
 """
 
 from __future__ import annotations
