@@ -23,6 +23,7 @@ from stable_baselines3.common.monitor import Monitor
 
 import gp_envs  # registers the envs
 from benchmarks.rl.train import CURVE_FIELDS, latest_checkpoint, train
+from gp_agents.agent import rollout
 from gp_agents.rl import (
     AngleFeatures,
     BoundedShiftReward,
@@ -326,6 +327,23 @@ def test_resumed_sac_is_bit_identical(sac_runs: dict) -> None:
     assert "--reward bounded-shift" in meta["command"] and "--time-feature" in meta["command"]
     assert latest_checkpoint(root / "resumed" / "checkpoints").name == "ckpt_0000000480"
     assert len(list((root / "resumed" / "checkpoints").glob("ckpt_*"))) == 1
+
+
+def test_best_policy_is_the_curves_best_row_and_acts_as_evaluated(sac_runs: dict) -> None:
+    root = sac_runs["root"]
+    rows = _curve(root / "whole")
+    # the first row with the highest success rate, among those the lowest mean cost
+    want = min(rows, key=lambda r: (-float(r["success_rate"]), float(r["mean_cost"])))
+    metas = [json.loads((root / run / "best" / "metadata.json").read_text())
+             for run in ("whole", "resumed")]
+    for meta in metas:
+        best = meta["best_of_learning_curve"]
+        assert best["timesteps"] == int(want["timesteps"]) == meta["training_steps"]
+        assert best["mean_cost"] == pytest.approx(float(want["mean_cost"]))
+    env = gym.make("gp_envs/CartPoleSwingUp-v0", scenario="online")
+    agent = RLAgent.load(root / "whole" / "best", env)  # one curve episode: reset seed 1000
+    assert -rollout(env, agent, 1000).summary()["return"] == pytest.approx(
+        float(want["mean_cost"]), rel=1e-9)
 
 
 def test_saved_time_feature_agent_acts_like_training_policy(sac_runs: dict) -> None:

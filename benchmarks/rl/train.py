@@ -59,7 +59,9 @@ Writes to ``--out`` (default ``./benchmarks/models/<env-short-name>/<algo>/`` un
 directory, where ``gp-bench`` looks for RL models before the shipped ones): ``model.zip``,
 ``vecnormalize.pkl``, ``metadata.json`` (hyperparameters, wrappers, seed, steps, wall-clock time,
 the command) and ``learning_curve.csv`` at the end, ``learning_curve.csv`` after every
-evaluation, and ``checkpoints/`` (not for version control).
+evaluation, ``best/`` (the policy of the learning curve's best evaluation, :func:`better`, saved
+as an agent with its row under ``best_of_learning_curve`` in its metadata: evaluate it on other
+seeds) and ``checkpoints/`` (not for version control).
 """
 
 from __future__ import annotations
@@ -282,6 +284,34 @@ and mean/std return (``= -cost``, kept for older readers)."""
 CHECKPOINTS = "checkpoints"
 LATEST = "LATEST"
 CURVE_FILE = "learning_curve.csv"
+BEST = "best"
+"""Subdirectory of a run with its best learning-curve policy (:func:`better`), saved as an
+agent at the evaluation that found it (SB3's ``EvalCallback(best_model_save_path=...)``)."""
+
+
+def better(stats: Mapping[str, float], best: Mapping[str, float] | None) -> bool:
+    """True: learning-curve ``stats`` beat ``best`` (None: nothing yet): a higher success rate,
+    or the same and a lower mean cost. The evaluation's reset seeds choose the policy, so a
+    best policy is judged on other seeds (the benchmark's, a study's final seeds)."""
+    if best is None:
+        return True
+    if stats["success_rate"] != best["success_rate"]:
+        return stats["success_rate"] > best["success_rate"]
+    return stats["mean_cost"] < best["mean_cost"]
+
+
+BEST_RULE = "highest success rate, then lowest mean cost"
+
+
+def best_record(out: Path) -> dict[str, Any] | None:
+    """The learning-curve row (with its seeds and :data:`BEST_RULE`) of the best policy saved in
+    ``out``/:data:`BEST`, or None. A resumed run compares with it: a ``gp_envs`` run redoes the
+    evaluations after its checkpoint identically, so the policy on disk is the one it finds
+    again; an outside env's is the best one seen."""
+    meta = out / BEST / METADATA_FILE
+    if not meta.is_file():
+        return None
+    return json.loads(meta.read_text()).get("best_of_learning_curve")
 
 
 def log(msg: str) -> None:
@@ -538,6 +568,7 @@ def train(env: str, scenario: str, algo: str, steps: int, seed: int, out: Path,
     ckpt_root = out / CHECKPOINTS
     if fresh:
         shutil.rmtree(ckpt_root, ignore_errors=True)
+        shutil.rmtree(out / BEST, ignore_errors=True)
         for f in ("model.zip", "vecnormalize.pkl", METADATA_FILE, CURVE_FILE):
             (out / f).unlink(missing_ok=True)
     probe = make()
@@ -565,6 +596,7 @@ def train(env: str, scenario: str, algo: str, steps: int, seed: int, out: Path,
             raise ValueError(f"checkpoint {ckpt} is at {prog['timesteps']} > --steps {steps}")
         model, venv = restore_checkpoint(ckpt, config)
         rows, elapsed, eval_time = prog["rows"], prog["elapsed_s"], prog["eval_time_s"]
+        best = best_record(out)
         sessions = [*prog["sessions"], {"start_utc": f"{dt.datetime.now(dt.UTC):%FT%TZ}",
                                         "from_steps": model.num_timesteps}]
         echo(f"resuming {ckpt} at {model.num_timesteps} env steps")
@@ -575,7 +607,8 @@ def train(env: str, scenario: str, algo: str, steps: int, seed: int, out: Path,
         sb3_kwargs = {k: v for k, v in copy.deepcopy(hp).items() if k not in _ENV_SIDE}
         model = quiet_logger(ALGORITHMS[algo]("MlpPolicy", venv, seed=seed, device="cpu",
                                               verbose=0, **sb3_kwargs))
-        rows, elapsed, eval_time = [], 0.0, 0.0
+        rows, elapsed, eval_time, best = [], 0.0, 0.0, None
+        shutil.rmtree(out / BEST, ignore_errors=True)
         sessions = [{"start_utc": f"{dt.datetime.now(dt.UTC):%FT%TZ}", "from_steps": 0}]
     if isinstance(model, OffPolicyAlgorithm) and model.train_freq.unit.value != "step":
         raise ValueError("train_freq must count steps")
@@ -598,7 +631,7 @@ def train(env: str, scenario: str, algo: str, steps: int, seed: int, out: Path,
         return elapsed + time.perf_counter() - t_session
 
     def evaluate() -> None:
-        nonlocal eval_time
+        nonlocal eval_time, best
         if eval_episodes == 0:
             return
         t = time.perf_counter()
@@ -607,6 +640,11 @@ def train(env: str, scenario: str, algo: str, steps: int, seed: int, out: Path,
         rows.append({"timesteps": int(model.num_timesteps), "wall_time_s": round(wall(), 2),
                      **stats})
         write_curve(curve_path, rows)
+        if better(stats, best):
+            best = {"seeds": config["eval_seeds"], **rows[-1], "rule": BEST_RULE}
+            RLAgent(model, dict(metadata, training_steps=int(model.num_timesteps),
+                                best_of_learning_curve=best),
+                    model.get_vec_normalize_env()).save(out / BEST)
         eval_time += time.perf_counter() - t
         if progress:
             echo(f"  eval @ {model.num_timesteps}: success {stats['success_rate']:.2f}  cost "
