@@ -16,16 +16,12 @@ import casadi as ca
 import gymnasium as gym
 import numpy as np
 import pytest
+from agent_parts import mesh_of
 
 import gp_envs
 from benchmarks.studies import acados_peer, acados_peer_worker
 from gp_agents import PseudospectralMPC
 from gp_envs.physics import quadrotor
-
-
-def mesh_of(agent):
-    """The mesh an agent plans on."""
-    return agent.config.schedule.mesh(agent.model.dt)
 
 
 @pytest.fixture(scope="module")

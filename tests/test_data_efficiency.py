@@ -9,6 +9,7 @@ import casadi as ca
 import gymnasium as gym
 import numpy as np
 import pytest
+from agent_parts import residual_of
 
 import gp_envs
 from gp_agents import (
@@ -20,11 +21,6 @@ from gp_agents import (
     rollout,
 )
 from gp_agents.mpc.blackbox import KinematicOde, blackbox_model
-
-
-def residual_of(agent):
-    """The residual an agent's learner is fitted on (its settings on its current model)."""
-    return agent.config.residual.model(agent.model)
 
 PILCO = "gp_envs/PilcoCartPole-v0"
 

@@ -8,6 +8,7 @@ import casadi as ca
 import gymnasium as gym
 import numpy as np
 import pytest
+from agent_parts import mesh_of, residual_of
 
 import gp_agents.mpc as mpc_module
 import gp_agents.mpc.gp_in_nlp as gp_in_nlp_module
@@ -31,16 +32,6 @@ from gp_agents.mpc import (
 from gp_agents.mpc.active_set import ActiveSetQP
 from gp_agents.mpc.gp_pattern import nominal_pattern
 from gp_agents.residual import ResidualModel
-
-
-def residual_of(agent):
-    """The residual an agent's learner is fitted on (its settings on its current model)."""
-    return agent.config.residual.model(agent.model)
-
-
-def mesh_of(agent):
-    """The mesh an agent plans on."""
-    return agent.config.schedule.mesh(agent.model.dt)
 
 CART = "gp_envs/CartPoleSwingUp-v0"
 QUAD = "gp_envs/Quadrotor-v0"

@@ -9,6 +9,7 @@ import warnings
 import gymnasium as gym
 import numpy as np
 import pytest
+from agent_parts import mesh_of, residual_of
 
 import gp_envs
 from gp_agents import (
@@ -32,16 +33,6 @@ from gp_agents import (
 )
 from gp_agents.mpc import GPInNLP, LinearizedGP, MPCConfig, PatternLinearizedGP
 from gp_agents.residual import ResidualModel
-
-
-def residual_of(agent):
-    """The residual an agent's learner is fitted on (its settings on its current model)."""
-    return agent.config.residual.model(agent.model)
-
-
-def mesh_of(agent):
-    """The mesh an agent plans on."""
-    return agent.config.schedule.mesh(agent.model.dt)
 
 
 def _env(name: str = "cartpole", **kwargs) -> gym.Env:
