@@ -510,8 +510,9 @@ def data_efficiency(seeds: Sequence[int] = DATA_EFFICIENCY_SEEDS,
     return Experiment(
         "data-efficiency", "Data efficiency: success against the data used",
         "Nominal, paper (online SSGP in the NLP), robust (parametric SSGP, linearized), "
-        "black-box (no physics prior: kinematics only, the SSGP learns every acceleration) and "
-        "oracle MPC, the learners with 0, 5, 10, 20, 50, 100 and 200 initial samples "
+        "black-box (no physics prior: kinematics only, the SSGP learns every acceleration), "
+        "parametric (the grey box: recursive least squares on the parameter sensitivities, no "
+        "GP) and oracle MPC, the learners with 0, 5, 10, 20, 50, 100 and 200 initial samples "
         "collected as a user does (`collect_initial_data(env, n, seed=s)`: PILCO's cart pole "
         "applies uniform random forces, as PILCO's first random trial; the other systems their "
         "crude tracking controller), on evaluation seeds "
