@@ -760,3 +760,40 @@ def test_eval_rl_rows_carry_intervals_over_the_episodes() -> None:
     assert len(episodes) == 5 and row["episodes"] == 5
     assert 0.0 <= row["success_ci_low"] <= row["success_rate"] <= row["success_ci_high"] <= 1.0
     assert row["return_ci_low"] <= row["mean_return"] <= row["return_ci_high"]
+
+
+def test_ship_best_takes_the_best_training_evaluation_reproduced_by_its_command(
+        sac_runs: dict, tmp_path: Path) -> None:
+    """``ship --best``: the plan's best learning-curve row (highest success, then lowest cost)
+    names a seed and a step; the same command trained to that step reproduces the curve up to
+    it, and only such a run is shipped."""
+    from benchmarks.rl.runs import Plan
+    from benchmarks.rl.ship import best_policy, ship_best
+
+    root = sac_runs["root"]
+    plan = Plan(env="cartpole", scenario="online", algo="sac", hyperparams="sac-swingup",
+                steps=480, seeds=(5,), reward="bounded-shift", time_feature=True,
+                eval_freq=160, eval_episodes=1, checkpoint_freq=160, root=root / "whole",
+                seed_dirs=False)
+    rows = _curve(root / "whole")
+    want = min(rows, key=lambda r: (-float(r["success_rate"]), float(r["mean_cost"])))
+    seed, row = best_policy("p", plan)
+    assert seed == 5 and row["timesteps"] == int(want["timesteps"])
+    step = int(row["timesteps"])
+    assert step > 0  # this run's best is a trained policy (a run needs --steps > 0)
+    again = tmp_path / "again"
+    with pytest.raises(ValueError, match=f"the best policy is seed 5 at {step}"):
+        ship_best("p", plan, root / "whole", models=tmp_path / "models")  # the whole run
+    _tiny_sac(again, step)
+    record = ship_best("p", plan, again, models=tmp_path / "models")
+    dest = tmp_path / "models" / "cartpole" / "sac"
+    assert record["step"] == step and (dest / "model.zip").read_bytes() == (
+        again / "model.zip").read_bytes()
+    tampered = _curve(again)
+    tampered[-1]["mean_cost"] = str(float(tampered[-1]["mean_cost"]) + 0.5)
+    with open(again / "learning_curve.csv", "w", newline="") as fh:  # not the plan's policy
+        writer = csv.DictWriter(fh, fieldnames=list(tampered[0]))
+        writer.writeheader()
+        writer.writerows(tampered)
+    with pytest.raises(ValueError, match="learning curve differs"):
+        ship_best("p", plan, again, models=tmp_path / "models")
