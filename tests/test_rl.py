@@ -6,6 +6,7 @@ from __future__ import annotations
 import csv
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -762,11 +763,11 @@ def test_eval_rl_rows_carry_intervals_over_the_episodes() -> None:
     assert row["return_ci_low"] <= row["mean_return"] <= row["return_ci_high"]
 
 
-def test_ship_best_takes_the_best_training_evaluation_reproduced_by_its_command(
+def test_ship_best_ships_the_best_policy_of_a_rerun_of_the_plans_best_seed(
         sac_runs: dict, tmp_path: Path) -> None:
     """``ship --best``: the plan's best learning-curve row (highest success, then lowest cost)
-    names a seed and a step; the same command trained to that step reproduces the curve up to
-    it, and only such a run is shipped."""
+    picks the seed; a run with that seed's configuration ships its ``best/`` policy, byte for
+    byte; a run with another configuration, or without a best policy, is refused."""
     from benchmarks.rl.runs import Plan
     from benchmarks.rl.ship import best_policy, ship_best
 
@@ -779,21 +780,20 @@ def test_ship_best_takes_the_best_training_evaluation_reproduced_by_its_command(
     want = min(rows, key=lambda r: (-float(r["success_rate"]), float(r["mean_cost"])))
     seed, row = best_policy("p", plan)
     assert seed == 5 and row["timesteps"] == int(want["timesteps"])
-    step = int(row["timesteps"])
-    assert step > 0  # this run's best is a trained policy (a run needs --steps > 0)
-    again = tmp_path / "again"
-    with pytest.raises(ValueError, match=f"the best policy is seed 5 at {step}"):
-        ship_best("p", plan, root / "whole", models=tmp_path / "models")  # the whole run
-    _tiny_sac(again, step)
-    record = ship_best("p", plan, again, models=tmp_path / "models")
+    rerun = root / "resumed"  # the same configuration (interrupted and resumed)
+    record = ship_best("p", plan, rerun, models=tmp_path / "models")
     dest = tmp_path / "models" / "cartpole" / "sac"
-    assert record["step"] == step and (dest / "model.zip").read_bytes() == (
-        again / "model.zip").read_bytes()
-    tampered = _curve(again)
-    tampered[-1]["mean_cost"] = str(float(tampered[-1]["mean_cost"]) + 0.5)
-    with open(again / "learning_curve.csv", "w", newline="") as fh:  # not the plan's policy
-        writer = csv.DictWriter(fh, fieldnames=list(tampered[0]))
-        writer.writeheader()
-        writer.writerows(tampered)
-    with pytest.raises(ValueError, match="learning curve differs"):
-        ship_best("p", plan, again, models=tmp_path / "models")
+    assert (dest / "model.zip").read_bytes() == (rerun / "best" / "model.zip").read_bytes()
+    best = json.loads((rerun / "best" / "metadata.json").read_text())["best_of_learning_curve"]
+    assert record["training_eval"]["timesteps"] == best["timesteps"]
+    assert json.loads((dest / "metadata.json").read_text())["shipped_from"]["seed"] == 5
+    other = tmp_path / "other"
+    shutil.copytree(rerun, other, ignore=shutil.ignore_patterns("checkpoints"))
+    meta = json.loads((other / "best" / "metadata.json").read_text())
+    meta["run_config"]["seed"] = 6
+    (other / "best" / "metadata.json").write_text(json.dumps(meta))
+    with pytest.raises(ValueError, match="another configuration"):
+        ship_best("p", plan, other, models=tmp_path / "models")
+    shutil.rmtree(other / "best")
+    with pytest.raises(ValueError, match="not a finished run with a best/ policy"):
+        ship_best("p", plan, other, models=tmp_path / "models")

@@ -11,13 +11,16 @@ rule, every candidate's last training-evaluation cost)::
 
     python -m benchmarks.rl.ship --plan cartpole_online_sac
 
-``--best`` ships the plan's best learning-curve policy instead (:data:`BEST_RULE`, on the same
-training-evaluation seeds: SB3's ``EvalCallback`` best model across the seeds), for a plan whose
-policies reach the goal during training and lose it by the end. The policy is the seed's run
-trained to that evaluation's step, which a run of the same command with that ``--steps``
-reproduces (training is deterministic per seed and command): ``--from DIR`` names that run,
-whose learning curve must equal the plan seed's up to the step; without ``--from`` the command
-prints the training command to run first::
+``--best`` ships a best learning-curve policy instead, for a plan whose policies reach the goal
+during training and lose it by the end: the seed whose training evaluations include the plan's
+best one (:data:`BEST_RULE`, on the same training-evaluation seeds) is trained again with the
+same configuration, the run keeping its best learning-curve policy in ``best/`` (SB3's
+``EvalCallback`` best model; :mod:`benchmarks.rl.train`), and that policy is shipped. A re-run
+rather than the original policy, because the plans' runs kept their final policies only and
+training does not reproduce bit for bit across library versions (a float's last digits in the
+first evaluation grow into another run within 2e4 steps). ``--from DIR`` names the re-run; its
+configuration must be the plan seed's; without ``--from`` the command prints the training
+command to run first::
 
     python -m benchmarks.rl.ship --plan cartpole_online_tqc --best
     python -m benchmarks.rl.ship --plan cartpole_online_tqc --best --from DIR
@@ -33,7 +36,6 @@ from pathlib import Path
 from typing import Any
 
 from benchmarks.rl.runs import PLANS, REPO, Plan
-from benchmarks.rl.seeds import read_curve
 from benchmarks.rl.summary import load_runs
 
 __all__ = ["BEST_RULE", "RULE", "best_policy", "select_seed", "ship", "ship_best"]
@@ -109,35 +111,34 @@ def best_policy(name: str, plan: Plan) -> tuple[int, dict[str, float]]:
 
 
 def ship_best(name: str, plan: Plan, source: Path, models: Path = MODELS) -> dict[str, Any]:
-    """Copy the plan's best learning-curve policy (:func:`best_policy`), trained again into
-    run directory ``source``, to ``models/<env>/<algo>/``; returns its ``shipped_from`` record.
+    """Copy the best learning-curve policy of ``source`` (``source/best``), a run of the seed
+    :func:`best_policy` picks with the plan's configuration, to ``models/<env>/<algo>/``;
+    returns its ``shipped_from`` record.
 
     Raises:
-        ValueError: ``source`` is not that seed's run finished at that step: another length,
-            or a learning curve that differs from the plan seed's (values to 1e-9 relative,
-            wall times aside) up to it.
+        ValueError: ``source`` has no finished run or no ``best/`` policy, or was trained with
+            another configuration than the plan's seed.
     """
     seed, row = best_policy(name, plan)
-    step = int(row["timesteps"])
-    meta = json.loads((source / "metadata.json").read_text())
-    if int(meta["training_steps"]) != step or int(meta.get("seed", -1)) != seed:
-        raise ValueError(f"{source} holds seed {meta.get('seed')} at {meta['training_steps']} "
-                         f"steps; the best policy is seed {seed} at {step}")
-    plan_curve = next(r for r in load_runs(name, plan) if r.seed == seed).curve
-    want = [r for r in plan_curve if r["timesteps"] <= step]
-    got = read_curve(source / "learning_curve.csv")
-    same = len(got) == len(want) and all(
-        abs(a[k] - b[k]) <= 1e-9 * max(1.0, abs(b[k])) for a, b in zip(got, want, strict=True)
-        for k in _CURVE_KEYS)
-    if not same:
-        raise ValueError(f"{source}'s learning curve differs from plan {name!r} seed {seed}'s up "
-                         f"to step {step}: it is not the plan's policy")
+    plan_meta = json.loads((plan.run_dir(name, seed) / "metadata.json").read_text())
+    meta_file = source / "metadata.json"
+    best_dir = source / "best"
+    if not meta_file.is_file() or not (best_dir / "metadata.json").is_file():
+        raise ValueError(f"{source} is not a finished run with a best/ policy (train it with "
+                         f"the command `ship --best` prints)")
+    meta = json.loads((best_dir / "metadata.json").read_text())
+    if meta.get("run_config") != plan_meta.get("run_config"):
+        raise ValueError(f"{source} was trained with another configuration than plan {name!r} "
+                         f"seed {seed}: not its re-run")
     dest = models / plan.env / plan.algo
     dest.mkdir(parents=True, exist_ok=True)
-    for f in FILES:
-        shutil.copyfile(source / f, dest / f)
-    record = {"plan": name, "seed": seed, "rule": BEST_RULE, "step": step,
-              "training_eval": {k: row[k] for k in _CURVE_KEYS},
+    for f in FILES[:3]:
+        shutil.copyfile(best_dir / f, dest / f)
+    shutil.copyfile(source / "learning_curve.csv", dest / "learning_curve.csv")
+    best = meta["best_of_learning_curve"]
+    record = {"plan": name, "seed": seed, "rule": BEST_RULE,
+              "plan_best_training_eval": {k: row[k] for k in _CURVE_KEYS},
+              "training_eval": {k: best[k] for k in _CURVE_KEYS},
               "run_dir": str(source.relative_to(REPO) if source.is_relative_to(REPO)
                              else source)}
     meta["shipped_from"] = record
@@ -151,10 +152,11 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--plan", required=True, choices=sorted(n for n in PLANS
                                                                   if not n.startswith("pilot")))
     parser.add_argument("--best", action="store_true",
-                        help="ship the best learning-curve policy over the seeds (BEST_RULE)")
+                        help="ship the best learning-curve policy of a re-run of the plan's "
+                             "best seed (BEST_RULE)")
     parser.add_argument("--from", dest="source", type=Path, default=None,
-                        help="with --best: the run that reproduces it (without: print the "
-                             "training command that makes it)")
+                        help="with --best: that re-run (without: print the training command "
+                             "that makes it)")
     args = parser.parse_args(argv)
     plan = PLANS[args.plan]
     if args.source is not None and not args.best:
@@ -165,12 +167,12 @@ def main(argv: list[str] | None = None) -> None:
         elif args.source is None:
             seed, row = best_policy(args.plan, plan)
             cmd = plan.command(args.plan, seed)
-            cmd[cmd.index("--steps") + 1] = str(int(row["timesteps"]))
             out = cmd.index("--out") + 1
-            cmd[out] = f"{cmd[out]}-best"
+            cmd[out] = f"{cmd[out]}-rerun"
             print(f"best: seed {seed} at {int(row['timesteps'])} steps (success "
-                  f"{row['success_rate']:.2f}, cost {row['mean_cost']:.2f}); train it, then "
-                  f"ship it with --from {cmd[out]}:\npython {shlex.join(cmd)}")
+                  f"{row['success_rate']:.2f}, cost {row['mean_cost']:.2f}); train the seed "
+                  f"again, then ship its best policy with --from {cmd[out]}:\n"
+                  f"python {shlex.join(cmd)}")
             return
         else:
             record = ship_best(args.plan, plan, args.source)
