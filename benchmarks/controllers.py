@@ -196,14 +196,16 @@ committed results and presets use these names, and build exactly the composed co
 
 
 def learned_term(recipe: ControllerRecipe, system: str) -> str | None:
-    """The ``term`` name ``recipe``'s MPC uses on ``system`` (its own setting, else
-    :func:`gp_agents.mpc.config.default_term` of its scheme and the system's
+    """The ``term`` name ``recipe``'s MPC uses on the benchmark env ``system`` (its own
+    setting, else its recipe's on that env, an outside env's truth being outside its model's
+    family, else :func:`gp_agents.mpc.config.default_term` of its scheme and the system's
     tuning), or None for a recipe with no learner."""
     if recipe.learner is None:
         return None
     settings = dict(recipe.settings)
     if recipe.recipe is not None:
-        settings.update(recipe_settings(recipe.recipe, recipe.scheme))
+        settings.update(recipe_settings(recipe.recipe, recipe.scheme,
+                                        outside=system in OUTSIDE_ENVS))
     term = settings.get("term")
     if term is not None:
         return term if isinstance(term, str) else type(term).__name__

@@ -89,6 +89,8 @@ _TQC = "#E377C2"  # pink
 _BLACKBOX = "#8C6D31"  # dark olive brown: the no-prior model
 _PARAMETRIC_RLS = "#98DF8A"  # light green: the parametric part alone, no GP
 _GUARDED = "#FF9896"  # light red: the robust recipe with the plan-level nominal fallback
+_EXACT = "#C49C94"  # light brown: the robust recipe with the learned residual itself in the NLP
+_LINEARIZED_EVERYWHERE = "#7B4173"  # dark magenta: the robust recipe linearized on every env
 
 STYLES: dict[str, Style] = {
     # nominal: thick and underneath; oracle: thin and on top (the two often coincide)
@@ -143,6 +145,8 @@ STYLES: dict[str, Style] = {
     # the grey-box baseline: recursive least squares on the parameter sensitivities, no GP
     "parametric-mpc": Style(_PARAMETRIC_RLS, RECEDING, "$j$"),
     "robust-mpc-guarded": Style(_GUARDED, RECEDING, "$u$"),
+    "robust-mpc-exact": Style(_EXACT, RECEDING, "$e$"),
+    "robust-mpc-linearized": Style(_LINEARIZED_EVERYWHERE, RECEDING, "$i$"),
     "parametric-mpc@rti": Style(_PARAMETRIC_RLS, RTI, "$G$"),
     "parametric-mpc@rti-split": Style(_PARAMETRIC_RLS, RTI, "$H$"),
     "parametric-mpc@sqp": Style(_PARAMETRIC_RLS, SQP_SCHEME, "$J$"),

@@ -45,7 +45,8 @@ from gp_envs.systems import (
 from gp_envs.wrapper import ModelWrapper, model_wrapper, nominal_model, wrap
 
 __all__ = ["ENV_IDS", "SYSTEMS", "ControlModel", "ModelWrapper", "Obstacle", "System", "Task",
-           "get_system", "nominal_model", "oracle_model", "oracle_state", "register_system",
+           "get_system", "nominal_model", "oracle_model", "oracle_state", "outside_truth",
+           "register_system",
            "unregister_system", "wrap"]
 
 __version__ = "0.1.0"
@@ -79,6 +80,29 @@ def oracle_model(env: gym.Env) -> ControlModel:
     if not isinstance(base, GPEnv):
         raise TypeError(f"oracle_model needs a gp_envs environment, got {type(base).__name__}")
     return base._oracle()
+
+
+def outside_truth(env: gym.Env) -> bool:
+    """Whether ``env``'s truth is outside its nominal model's family as far as the package can
+    tell: True for an env given its model by :func:`wrap` (its own simulator, whatever the
+    model) and for a ``gp_envs`` env whose plant is an outside simulator
+    (:attr:`~gp_envs.base.GPEnv.OUTSIDE_PLANT`, e.g. :mod:`gp_envs.dmc`'s MuJoCo truths);
+    False for a ``gp_envs`` env whose truth is its model's own ODE with hidden parameter
+    values. It says nothing about the truth's parameters, which a controller never sees.
+
+    Raises:
+        TypeError: ``env`` is neither (a wrapper of) a ``gp_envs`` environment nor wrapped by
+            :func:`wrap`.
+    """
+    from gp_envs.base import GPEnv
+
+    if model_wrapper(env) is not None:
+        return True
+    base = env.unwrapped
+    if not isinstance(base, GPEnv):
+        raise TypeError(f"outside_truth needs a gp_envs environment or one given a model by "
+                        f"gp_envs.wrap, got {type(base).__name__}")
+    return bool(base.OUTSIDE_PLANT)
 
 
 def oracle_state(env: gym.Env) -> np.ndarray:

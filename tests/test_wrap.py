@@ -209,3 +209,34 @@ def test_gp_envs_own_reset_options_are_refused_for_another_env(option):
     with pytest.raises(ValueError, match="gp_envs envs' own"):
         env.reset(seed=0, options=option)
     env.reset(seed=0, options={"x_init": 1.0, "y_init": 0.5})  # Pendulum-v1's own pass
+
+
+# ------------------------------------------------------------------ outside truths
+def test_outside_truth_tells_a_wrapped_env_from_a_package_ode():
+    assert gp_envs.outside_truth(gym.wrappers.RecordEpisodeStatistics(wrapped()))
+    assert not gp_envs.outside_truth(gym.make("gp_envs/CartPoleSwingUp-v0"))
+    with pytest.raises(TypeError, match=r"outside_truth needs.*gp_envs\.wrap"):
+        gp_envs.outside_truth(gym.make("Pendulum-v1"))
+
+
+@pytest.mark.parametrize("recipe", ["robust", "parametric", "blackbox"])
+def test_learning_recipes_plan_with_the_learner_itself_on_an_outside_truth(recipe):
+    """Converged: the learner itself in the NLP on a wrapped env, its expansion about the
+    previous plan on a package system (whose truth is the model's ODE); the RTI keeps the
+    system's tuned term, and term= overrides the rule."""
+    outside, own = wrapped(0.4), gym.make("gp_envs/CartPoleSwingUp-v0")
+    assert make_mpc(outside, recipe).config.term.name == "exact"
+    assert make_mpc(own, recipe).config.term.name == "linearized"
+    assert make_mpc(outside, recipe, scheme="rti").config.term.name == "linearized"
+    assert make_mpc(outside, recipe, scheme="sqp").config.term.name == "linearized"
+    assert make_mpc(outside, recipe, term="linearized").config.term.name == "linearized"
+
+
+def test_the_nominal_guard_on_an_outside_truth_asks_for_the_linearized_term():
+    from gp_agents.mpc import Converged
+
+    env = wrapped(0.4)
+    with pytest.raises(ValueError, match=r"outside truth: pass\s+term='linearized'"):
+        make_mpc(env, scheme=Converged(nominal_above=1.0))
+    agent = make_mpc(env, scheme=Converged(nominal_above=1.0), term="linearized")
+    assert agent.config.term.name == "linearized"

@@ -217,7 +217,9 @@ def _check_combination(model: ControlModel, learner: Any, schedule: RecedingHori
                                                      LinearizedGP)))):
         raise ValueError("Converged(nominal_above=...) falls back from a linearized learned "
                          "term's plan to the nominal model's: it needs a learner and "
-                         "term='linearized' (or another LinearizedGP)")
+                         "term='linearized' (or another LinearizedGP; make_mpc's learning "
+                         "recipes plan with term='exact' on an outside truth: pass "
+                         "term='linearized' with it)")
     if learner is not None and residual.refit_until and (
             residual.learn_online is False or not schedule.learns):
         raise ValueError("Residual(refit_until=...) refits the learner on the transitions it "

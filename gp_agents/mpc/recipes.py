@@ -4,7 +4,8 @@
 ``robust``      (default) nominal physics plus the learner that held across randomized, changed
                 and noisy systems: :func:`~gp_agents.learners.parametric_ssgp` (an explicit
                 parametric part on the parameter sensitivities, the SSGP around it, restarted on
-                a change, off while worse than the nominal model), linearized per node
+                a change, off while worse than the nominal model), linearized per node (the
+                learner itself in the NLP on an outside truth: below)
 ``paper``       the paper's Algorithm 1: :func:`~gp_agents.learners.online_ssgp`, the GP's mean
                 inside the NLP; for reproducing the paper's tables
 ``nominal``     physics only (the nominal model), no learning
@@ -18,6 +19,16 @@
                 parameters alone, :func:`~gp_agents.learners.parametric_rls` (recursive least
                 squares on the parameter sensitivities, no GP), linearized per node
 ==============  ==============================================================================
+
+The learning recipes' converged scheme plans with the learned term linearized per node about
+the previous plan (:class:`~gp_agents.mpc.gp_linearized.LinearizedGP`: several times faster
+than the learner itself in the NLP, with outcomes within the latter's intervals on the
+package's systems) where the truth is the nominal model's own ODE; where it is not
+(:func:`gp_envs.outside_truth`: an env given its model by :func:`gp_envs.wrap`, an outside
+simulator such as MuJoCo), with the learner itself in the NLP (``term="exact"``). There a
+residual the model family cannot represent (friction's kink) can bend sharply along the plan,
+one expansion about the previous plan is then far from the learner at the new plan's nodes,
+and the plan follows neither model. ``term=`` overrides it.
 
 Each recipe resolves its own coupled settings (the robust learner's sensitivity columns come
 from the agent's own residual), so ``make_mpc(env, recipe, scheme=...)`` is all it takes; any
@@ -46,16 +57,18 @@ __all__ = ["DEFAULT_RECIPE", "RECIPES", "OracleModel", "make_mpc", "recipe_setti
 
 RECIPES: dict[str, str] = {
     "robust": "nominal physics + parametric SSGP on the parameter sensitivities, linearized per "
-              "node; holds on randomized, changed and noisy systems (recommended)",
+              "node (in the NLP itself on an outside truth); holds on randomized, changed and "
+              "noisy systems (recommended)",
     "paper": "the paper's Algorithm 1: nominal physics + online SSGP, its mean inside the NLP",
     "nominal": "nominal physics only, no learning",
     "oracle": "the true model (gp_envs.oracle_model): an upper bound, not a controller you can "
               "deploy",
     "blackbox": "no physics prior (GP-MPC's baseline): kinematics only, an online SSGP learns "
-                "every acceleration from the data, linearized per node",
+                "every acceleration from the data, linearized per node (in the NLP itself on an "
+                "outside truth)",
     "parametric": "grey-box baseline: nominal physics + recursive least squares on the parameter "
                   "sensitivities (its parameters re-identified online, no GP), linearized per "
-                  "node",
+                  "node (in the NLP itself on an outside truth)",
 }
 """Every recipe name with its one-line description."""
 
@@ -98,11 +111,13 @@ class OracleModel:
 
 
 def recipe_settings(recipe: str, scheme: str | Converged | SQP | RTI | None = None,
-                    system: str | None = None) -> dict[str, Any]:
+                    system: str | None = None, *, outside: bool = False) -> dict[str, Any]:
     """The constructor settings of ``recipe`` with ``scheme`` (None: converged) on the system
     called ``system`` (its :data:`RECIPE_RTI` entries; None: none), learner included (a
     fresh, unfitted one; None for the recipes that learn nothing); the oracle's and the
-    black box's model sources are added by :func:`make_mpc`.
+    black box's model sources are added by :func:`make_mpc`. ``outside``: the truth is not the
+    nominal model's ODE (:func:`gp_envs.outside_truth`), where the converged scheme's learned
+    term is the learner itself (module doc).
 
     Raises:
         ValueError: an unknown recipe (the message lists them) or scheme.
@@ -117,19 +132,21 @@ def recipe_settings(recipe: str, scheme: str | Converged | SQP | RTI | None = No
     out: dict[str, Any] = {"scheme": settings, "learner": None}
     if recipe == "paper":
         out["learner"] = online_ssgp()
-    elif recipe == "robust":
+        return out
+    if recipe == "robust":
         out.update(learner=parametric_ssgp(), residual=Residual(sensitivities=True))
-        if isinstance(settings, Converged | SQP):  # the RTI takes the system's tuned term
-            out["term"] = "linearized"
     elif recipe == "parametric":  # the robust recipe's data and schemes, the learner alone
         out.update(learner=parametric_rls(), residual=Residual(sensitivities=True))
-        if isinstance(settings, Converged | SQP):
-            out["term"] = "linearized"
     elif recipe == "blackbox":
         out.update(learner=online_ssgp(linear_features=BLACKBOX_LINEAR_FEATURES),
                    residual=Residual(refit_until=BLACKBOX_REFIT_UNTIL))
-        if isinstance(settings, Converged | SQP):
-            out["term"] = "linearized"
+    else:
+        return out
+    # the RTI takes the system's tuned term; the SQP re-expands its term at every iterate
+    if isinstance(settings, SQP) or (isinstance(settings, Converged) and not outside):
+        out["term"] = "linearized"
+    elif isinstance(settings, Converged):
+        out["term"] = "exact"
     return out
 
 
@@ -162,7 +179,7 @@ def make_mpc(env: gym.Env, recipe: str = DEFAULT_RECIPE, *,
         agent = make_mpc(env).pretrain(collect_initial_data(env, 200, seed=0))
     """
     model = gp_envs.nominal_model(env)  # raises TypeError, saying how to give the env a model
-    settings = recipe_settings(recipe, scheme, model.name)
+    settings = recipe_settings(recipe, scheme, model.name, outside=gp_envs.outside_truth(env))
     if "learner" in overrides and settings["learner"] is None and overrides["learner"] is not None:
         raise ValueError(f"recipe {recipe!r} learns nothing: it takes no learner (the learning "
                          f"recipes: 'robust', 'paper', 'blackbox', 'parametric')")
