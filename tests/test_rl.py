@@ -797,3 +797,21 @@ def test_ship_best_ships_the_best_policy_of_a_rerun_of_the_plans_best_seed(
     shutil.rmtree(other / "best")
     with pytest.raises(ValueError, match="not a finished run with a best/ policy"):
         ship_best("p", plan, other, models=tmp_path / "models")
+
+
+def test_ship_run_ships_one_saved_policy_with_its_reason(sac_runs: dict, tmp_path: Path) -> None:
+    from benchmarks.rl.ship import ship_run
+
+    source = sac_runs["root"] / "whole" / "best"
+    record = ship_run(source, "a study's rule", models=tmp_path / "models")
+    dest = tmp_path / "models" / "cartpole" / "sac"
+    assert (dest / "model.zip").read_bytes() == (source / "model.zip").read_bytes()
+    assert (dest / "vecnormalize.pkl").read_bytes() == (source / "vecnormalize.pkl").read_bytes()
+    meta = json.loads((dest / "metadata.json").read_text())
+    assert meta["shipped_from"] == record and record["rule"] == "a study's rule"
+    env = gym.make("gp_envs/CartPoleSwingUp-v0", scenario="online")
+    assert RLAgent.load(dest, env).training_steps == meta["training_steps"]
+    with pytest.raises(ValueError, match="say why"):
+        ship_run(source, " ", models=tmp_path / "models")
+    with pytest.raises(ValueError, match="not a saved agent"):
+        ship_run(tmp_path, "why", models=tmp_path / "models")

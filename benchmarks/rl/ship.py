@@ -24,6 +24,12 @@ command to run first::
 
     python -m benchmarks.rl.ship --plan cartpole_online_tqc --best
     python -m benchmarks.rl.ship --plan cartpole_online_tqc --best --from DIR
+
+``--run DIR --why TEXT`` ships one saved policy that no plan made (a study's run, its
+``best/`` policy), with the study's reason as the rule::
+
+    python -m benchmarks.rl.ship --run benchmarks/results/rl/goal_bonus/b100_seed300/best \
+        --why "docs/studies/rl_goal_bonus.md: ..."
 """
 
 from __future__ import annotations
@@ -38,7 +44,7 @@ from typing import Any
 from benchmarks.rl.runs import PLANS, REPO, Plan
 from benchmarks.rl.summary import load_runs
 
-__all__ = ["BEST_RULE", "RULE", "best_policy", "select_seed", "ship", "ship_best"]
+__all__ = ["BEST_RULE", "RULE", "best_policy", "select_seed", "ship", "ship_best", "ship_run"]
 
 MODELS = Path(__file__).resolve().parents[1] / "models"
 FILES = ("model.zip", "vecnormalize.pkl", "metadata.json", "learning_curve.csv")
@@ -146,11 +152,48 @@ def ship_best(name: str, plan: Plan, source: Path, models: Path = MODELS) -> dic
     return record
 
 
+def ship_run(source: Path, why: str, models: Path = MODELS) -> dict[str, Any]:
+    """Copy the saved policy in ``source`` (an agent directory: ``model.zip``,
+    ``metadata.json``, ``vecnormalize.pkl`` if it has one) to ``models/<env>/<algo>/`` (the
+    env's short name and the algorithm from its metadata), with ``why`` as its rule; returns
+    its ``shipped_from`` record.
+
+    Raises:
+        ValueError: ``source`` is not a saved agent, its env is not a registered system, or
+            ``why`` is empty.
+    """
+    from benchmarks.rl.train import ENV_SHORT_NAMES
+
+    if not why.strip():
+        raise ValueError("say why this policy ships (--why): the study and its rule")
+    meta_file = source / "metadata.json"
+    if not (meta_file.is_file() and (source / "model.zip").is_file()):
+        raise ValueError(f"{source} is not a saved agent (model.zip and metadata.json)")
+    meta = json.loads(meta_file.read_text())
+    short = {v: k for k, v in ENV_SHORT_NAMES.items()}.get(meta["env_id"])
+    if short is None:
+        raise ValueError(f"{source}: env {meta['env_id']!r} is not a registered system")
+    dest = models / short / meta["algo"]
+    dest.mkdir(parents=True, exist_ok=True)
+    files = [f for f in FILES[:2] if (source / f).is_file()]
+    for f in files:
+        shutil.copyfile(source / f, dest / f)
+    (dest / "learning_curve.csv").unlink(missing_ok=True)
+    record = {"rule": why, "seed": meta.get("seed"),
+              "run_dir": str(source.relative_to(REPO) if source.is_relative_to(REPO)
+                             else source)}
+    meta["shipped_from"] = record
+    (dest / "metadata.json").write_text(json.dumps(meta, indent=2, sort_keys=True) + "\n")
+    return record
+
+
 def main(argv: list[str] | None = None) -> None:
     """Command-line entry point (see the module docstring)."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--plan", required=True, choices=sorted(n for n in PLANS
-                                                                  if not n.startswith("pilot")))
+    parser.add_argument("--plan", choices=sorted(n for n in PLANS if not n.startswith("pilot")))
+    parser.add_argument("--run", type=Path, default=None,
+                        help="ship this saved policy instead of a plan's (with --why)")
+    parser.add_argument("--why", default="", help="with --run: the study and its rule")
     parser.add_argument("--best", action="store_true",
                         help="ship the best learning-curve policy of a re-run of the plan's "
                              "best seed (BEST_RULE)")
@@ -158,6 +201,16 @@ def main(argv: list[str] | None = None) -> None:
                         help="with --best: that re-run (without: print the training command "
                              "that makes it)")
     args = parser.parse_args(argv)
+    if (args.plan is None) == (args.run is None):
+        parser.error("give --plan or --run")
+    if args.run is not None:
+        if args.best or args.source is not None:
+            parser.error("--best and --from go with --plan")
+        try:
+            print(json.dumps(ship_run(args.run, args.why), indent=2))
+        except ValueError as err:
+            parser.error(str(err))
+        return
     plan = PLANS[args.plan]
     if args.source is not None and not args.best:
         parser.error("--from goes with --best")
