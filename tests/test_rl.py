@@ -811,6 +811,9 @@ def test_ship_run_ships_one_saved_policy_with_its_reason(sac_runs: dict, tmp_pat
     assert meta["shipped_from"] == record and record["rule"] == "a study's rule"
     env = gym.make("gp_envs/CartPoleSwingUp-v0", scenario="online")
     assert RLAgent.load(dest, env).training_steps == meta["training_steps"]
+    run_curve = _curve(source.parent)
+    assert _curve(dest) == [r for r in run_curve
+                            if int(r["timesteps"]) <= meta["training_steps"]] != run_curve
     with pytest.raises(ValueError, match="say why"):
         ship_run(source, " ", models=tmp_path / "models")
     with pytest.raises(ValueError, match="not a saved agent"):

@@ -46,8 +46,14 @@ SEEDS = range(20)
 
 
 def model_dirs(root: Path = MODELS) -> list[Path]:
-    """Directories under ``root`` holding a saved agent (``<env>/<algo>/metadata.json``)."""
-    return sorted(p.parent for p in root.glob(f"*/*/{METADATA_FILE}"))
+    """Directories under ``root`` holding a saved agent (``<env>/<algo>/metadata.json``) of a
+    registered ``gp_envs`` system; an outside env's (``dmc-cartpole``, ``pendulum-v1``: made
+    through :func:`gp_envs.wrap`, not ``gym.make``) are the own-env preset's to evaluate."""
+    out = []
+    for p in sorted(root.glob(f"*/*/{METADATA_FILE}")):
+        if json.loads(p.read_text())["env_id"] in gym.registry:
+            out.append(p.parent)
+    return out
 
 
 def read_curve(path: Path) -> list[dict[str, float]]:

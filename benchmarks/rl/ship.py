@@ -98,6 +98,18 @@ def ship(name: str, plan: Plan, models: Path = MODELS) -> dict[str, Any]:
     return record
 
 
+def _copy_curve(curve: Path, dest: Path, steps: int) -> None:
+    """Copy the learning curve ``curve`` to ``dest`` up to ``steps`` (the evaluations that led
+    to the policy shipped; none past it), or remove ``dest``'s when there is none."""
+    if not curve.is_file():
+        (dest / "learning_curve.csv").unlink(missing_ok=True)
+        return
+    lines = curve.read_text().splitlines()
+    col = lines[0].split(",").index("timesteps")
+    keep = [ln for ln in lines[1:] if float(ln.split(",")[col]) <= steps]
+    (dest / "learning_curve.csv").write_text("\n".join([lines[0], *keep]) + "\n")
+
+
 def best_policy(name: str, plan: Plan) -> tuple[int, dict[str, float]]:
     """The seed and learning-curve row of the plan's best training evaluation
     (:data:`BEST_RULE`), over its finished seeds.
@@ -140,8 +152,9 @@ def ship_best(name: str, plan: Plan, source: Path, models: Path = MODELS) -> dic
     dest.mkdir(parents=True, exist_ok=True)
     for f in FILES[:3]:
         shutil.copyfile(best_dir / f, dest / f)
-    shutil.copyfile(source / "learning_curve.csv", dest / "learning_curve.csv")
+    _copy_curve(source / "learning_curve.csv", dest, int(meta["training_steps"]))
     best = meta["best_of_learning_curve"]
+    meta.setdefault("train_time_s", best["wall_time_s"])  # a best policy's: at its evaluation
     record = {"plan": name, "seed": seed, "rule": BEST_RULE,
               "plan_best_training_eval": {k: row[k] for k in _CURVE_KEYS},
               "training_eval": {k: best[k] for k in _CURVE_KEYS},
@@ -154,9 +167,10 @@ def ship_best(name: str, plan: Plan, source: Path, models: Path = MODELS) -> dic
 
 def ship_run(source: Path, why: str, models: Path = MODELS) -> dict[str, Any]:
     """Copy the saved policy in ``source`` (an agent directory: ``model.zip``,
-    ``metadata.json``, ``vecnormalize.pkl`` if it has one) to ``models/<env>/<algo>/`` (the
-    env's short name and the algorithm from its metadata), with ``why`` as its rule; returns
-    its ``shipped_from`` record.
+    ``metadata.json``, ``vecnormalize.pkl`` if it has one; its learning curve, or its run's for
+    a ``best/`` policy, up to its steps) to ``models/<env>/<algo>/`` (the env's short name and
+    the algorithm from its metadata), with ``why`` as its rule; returns its ``shipped_from``
+    record.
 
     Raises:
         ValueError: ``source`` is not a saved agent, its env is not a registered system, or
@@ -170,6 +184,8 @@ def ship_run(source: Path, why: str, models: Path = MODELS) -> dict[str, Any]:
     if not (meta_file.is_file() and (source / "model.zip").is_file()):
         raise ValueError(f"{source} is not a saved agent (model.zip and metadata.json)")
     meta = json.loads(meta_file.read_text())
+    if "best_of_learning_curve" in meta:  # a best policy's training time: at its evaluation
+        meta.setdefault("train_time_s", meta["best_of_learning_curve"]["wall_time_s"])
     short = {v: k for k, v in ENV_SHORT_NAMES.items()}.get(meta["env_id"])
     if short is None:
         raise ValueError(f"{source}: env {meta['env_id']!r} is not a registered system")
@@ -178,7 +194,9 @@ def ship_run(source: Path, why: str, models: Path = MODELS) -> dict[str, Any]:
     files = [f for f in FILES[:2] if (source / f).is_file()]
     for f in files:
         shutil.copyfile(source / f, dest / f)
-    (dest / "learning_curve.csv").unlink(missing_ok=True)
+    curve = source / "learning_curve.csv"  # a best/ policy's curve is its run's
+    _copy_curve(curve if curve.is_file() else source.parent / "learning_curve.csv", dest,
+                int(meta["training_steps"]))
     record = {"rule": why, "seed": meta.get("seed"),
               "run_dir": str(source.relative_to(REPO) if source.is_relative_to(REPO)
                              else source)}

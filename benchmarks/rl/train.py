@@ -643,6 +643,7 @@ def train(env: str, scenario: str, algo: str, steps: int, seed: int, out: Path,
         if better(stats, best):
             best = {"seeds": config["eval_seeds"], **rows[-1], "rule": BEST_RULE}
             RLAgent(model, dict(metadata, training_steps=int(model.num_timesteps),
+                                train_time_s=rows[-1]["wall_time_s"],
                                 best_of_learning_curve=best),
                     model.get_vec_normalize_env()).save(out / BEST)
         eval_time += time.perf_counter() - t

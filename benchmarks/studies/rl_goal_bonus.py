@@ -84,7 +84,8 @@ def main(argv: list[str] | None = None) -> None:
             writer = csv.DictWriter(fh, fieldnames=list(data[0]))
             writer.writeheader()
             writer.writerows(data)
-    lines = [f"# Cart-pole SAC, goal bonus: {args.seeds} evaluation",
+    lines = [f"# Cart-pole RL policies (goal bonus, best learning-curve policies): "
+             f"{args.seeds} evaluation",
              "",
              f"Deterministic episodes, reset seeds {seeds.start}..{seeds.stop - 1} "
              f"({len(seeds)} per model); success with its Wilson 95% interval, mean cost "
