@@ -47,7 +47,7 @@ SEEDS = range(20)
 
 def model_dirs(root: Path = MODELS) -> list[Path]:
     """Directories under ``root`` holding a saved agent (``<env>/<algo>/metadata.json``) of a
-    registered ``gp_envs`` system; an outside env's (``dmc-cartpole``, ``pendulum-v1``: made
+    registered ``gp_envs`` system; an outside env's (:mod:`benchmarks.outside_envs`: made
     through :func:`gp_envs.wrap`, not ``gym.make``) are the own-env preset's to evaluate."""
     out = []
     for p in sorted(root.glob(f"*/*/{METADATA_FILE}")):
