@@ -17,8 +17,8 @@ best one (:data:`BEST_RULE`, on the same training-evaluation seeds) is trained a
 same configuration, the run keeping its best learning-curve policy in ``best/`` (SB3's
 ``EvalCallback`` best model; :mod:`benchmarks.rl.train`), and that policy is shipped. A re-run
 rather than the original policy, because the plans' runs kept their final policies only and
-training does not reproduce bit for bit across library versions (a float's last digits in the
-first evaluation grow into another run within 2e4 steps). ``--from DIR`` names the re-run; its
+training does not reproduce bit for bit across library versions (a difference in a float's last
+digits grows into another run). ``--from DIR`` names the re-run; its
 configuration must be the plan seed's; without ``--from`` the command prints the training
 command to run first::
 
