@@ -4,9 +4,11 @@ A controller is named by a short string and built for one env and seed by
 :func:`build_controller`. The names compose (:func:`controller_name`):
 
 - ``<recipe>-mpc[@<scheme>]``: the MPC recipe of :data:`gp_agents.RECIPES` (``robust``,
-  ``paper``, ``nominal``, ``oracle``, ``blackbox``, ``parametric``) with the scheme
-  ``converged`` (default), ``rti`` or ``rti-split``, built by :func:`gp_agents.make_mpc`:
-  ``robust-mpc``, ``paper-mpc@rti-split``;
+  ``paper``, ``nominal``, ``oracle``, ``blackbox``, ``parametric``) built by
+  :func:`gp_agents.make_mpc`, with the recipe's own scheme on the env (no suffix: what
+  ``make_mpc(env, recipe)`` gives, :data:`gp_agents.mpc.recipes.RECIPE_SCHEMES`) or the
+  scheme ``converged`` (IPOPT), ``sqp``, ``rti`` or ``rti-split``: ``robust-mpc``,
+  ``robust-mpc@converged``, ``paper-mpc@rti-split``;
 - the RL algorithms ``sac``, ``ppo``, ``tqc`` (the shipped stable-baselines3 policies,
   :class:`gp_agents.rl.RLAgent`; a missing model, or one trained for another scenario, makes the
   controller *unavailable* for that env, which the runner records instead of crashing);
@@ -47,7 +49,7 @@ from benchmarks.outside_envs import OUTSIDE_ENVS, OutsideEnv
 from benchmarks.systems import benchmark_system
 from gp_agents.mpc import RECIPES, make_mpc
 from gp_agents.mpc.config import default_term
-from gp_agents.mpc.recipes import OracleModel, recipe_settings
+from gp_agents.mpc.recipes import RECIPE_SCHEMES, OracleModel, recipe_settings
 from gp_agents.mpc.settings import SCHEME_NAMES
 from gp_envs.systems import SYSTEMS
 
@@ -116,8 +118,10 @@ class ControllerRecipe:
             ``(name, value)`` pairs (the study variants); MPC only.
         recipe: the :data:`gp_agents.RECIPES` name it is built from (:func:`gp_agents.make_mpc`;
             None: the study variants, built from their own settings).
-        scheme: the scheme of a recipe-built controller (``"converged"``, ``"rti"``,
-            ``"rti-split"``).
+        scheme: the scheme of a recipe-built controller (``"converged"``, ``"sqp"``,
+            ``"rti"``, ``"rti-split"``; None: the recipe's own on the env, as
+            ``make_mpc(env, recipe)`` without ``scheme``); a study variant's is
+            ``"converged"`` unless its settings say otherwise.
         alias_of: the composed name this older name stands for (None: a main or study name).
         main: listed first by ``--list-controllers`` (the recipes and RL algorithms).
     """
@@ -133,7 +137,7 @@ class ControllerRecipe:
     algo: str | None = None
     settings: tuple[tuple[str, Any], ...] = ()
     recipe: str | None = None
-    scheme: str = "converged"
+    scheme: str | None = "converged"
     alias_of: str | None = None
     main: bool = False
 
@@ -150,38 +154,44 @@ class ControllerRecipe:
         return self.learner is not None
 
 
-def controller_name(recipe: str, scheme: str = "converged") -> str:
-    """The composed controller name of an MPC recipe and scheme: ``robust-mpc``,
-    ``paper-mpc@rti-split``."""
-    return f"{recipe}-mpc" + ("" if scheme == "converged" else f"@{scheme}")
+def controller_name(recipe: str, scheme: str | None = None) -> str:
+    """The composed controller name of an MPC recipe and scheme (None: the recipe's own on
+    the env): ``robust-mpc``, ``robust-mpc@converged``, ``paper-mpc@rti-split``."""
+    return f"{recipe}-mpc" + ("" if scheme is None else f"@{scheme}")
 
 
 _RECIPE_LEARNERS = {"robust": "ssgp-parametric", "paper": "ssgp", "nominal": None,
                     "oracle": None, "blackbox": "ssgp-blackbox", "parametric": "rls-parametric"}
 _RECIPE_LABELS = {"robust": "robust", "paper": "paper", "nominal": "nominal", "oracle": "oracle",
                   "blackbox": "black-box", "parametric": "parametric"}
-_SCHEME_LABELS = {"converged": "", "sqp": ", SQP", "rti": ", RTI", "rti-split": ", RTI split"}
+_SCHEME_LABELS = {None: "", "converged": ", IPOPT", "sqp": ", SQP", "rti": ", RTI",
+                  "rti-split": ", RTI split"}
 
 
 def _recipe_controllers() -> dict[str, ControllerRecipe]:
-    """``<recipe>-mpc[@<scheme>]`` for every library recipe and scheme."""
+    """``<recipe>-mpc[@<scheme>]`` for every library recipe and scheme (and none: the
+    recipe's own)."""
     out = {}
     for recipe, description in RECIPES.items():
         learner = _RECIPE_LEARNERS[recipe]
-        for scheme in SCHEME_NAMES:
+        for scheme in (None, *SCHEME_NAMES):
+            if scheme == "converged" and recipe not in RECIPE_SCHEMES:
+                continue  # its own scheme is the converged one everywhere: no second name
             name = controller_name(recipe, scheme)
-            tail = "" if scheme == "converged" else f" ({scheme})"
+            tail = ("" if scheme is None else " (converged: IPOPT)" if scheme == "converged"
+                    else f" ({scheme})")
             out[name] = ControllerRecipe(
                 name, f"{_RECIPE_LABELS[recipe]} MPC{_SCHEME_LABELS[scheme]}", "mpc",
                 description + tail, learner=learner, oracle=recipe == "oracle",
                 learn_online=learner is not None, recipe=recipe, scheme=scheme,
-                main=scheme == "converged")
+                main=scheme is None)
     return out
 
 
 ALIASES: dict[str, tuple[str, str]] = {
     "ssgp-mpc": ("paper-mpc", "SSGP MPC"),
-    "ssgp-mpc-linearized-parametric": ("robust-mpc", "SSGP MPC, linearized, parametric"),
+    "ssgp-mpc-linearized-parametric": ("robust-mpc@converged",
+                                       "SSGP MPC, linearized, parametric"),
     "nominal-mpc-rti": ("nominal-mpc@rti", "nominal MPC, RTI"),
     "oracle-mpc-rti": ("oracle-mpc@rti", "oracle MPC, RTI"),
     "ssgp-mpc-rti": ("paper-mpc@rti", "SSGP MPC, RTI"),
@@ -204,7 +214,7 @@ def learned_term(recipe: ControllerRecipe, system: str) -> str | None:
         return None
     settings = dict(recipe.settings)
     if recipe.recipe is not None:
-        settings.update(recipe_settings(recipe.recipe, recipe.scheme,
+        settings.update(recipe_settings(recipe.recipe, recipe.scheme, system,
                                         outside=system in OUTSIDE_ENVS))
     term = settings.get("term")
     if term is not None:
@@ -332,17 +342,17 @@ def _check_scheme_suffix(name: str) -> None:
     recipe = CONTROLLERS.get(base)
     if not at or recipe is None or recipe.recipe is None:
         return
-    suffixes = [s for s in SCHEME_NAMES if s != "converged"]
+    suffixes = list(SCHEME_NAMES)
     composed = controller_name(recipe.recipe, scheme) if scheme in SCHEME_NAMES else None
     if recipe.alias_of is not None and composed is not None:
         raise UnknownNameError(f"unknown controller {name!r}: {base!r} is an older name of "
                                f"{recipe.alias_of!r}; use {composed!r}")
     if scheme == "converged":
-        raise UnknownNameError(f"unknown controller {name!r}: the converged scheme has no "
-                               f"suffix; use {controller_name(recipe.recipe)!r}")
+        raise UnknownNameError(f"unknown controller {name!r}: the {recipe.recipe} recipe's own "
+                               f"scheme is the converged one; use {base!r}")
     raise UnknownNameError(f"unknown scheme {scheme!r} of controller {base!r} (schemes: "
-                           f"{', '.join(suffixes)}, as {base}@{suffixes[0]}; converged: no "
-                           "suffix)")
+                           f"{', '.join(suffixes)}, as {base}@{suffixes[1]}; the recipe's "
+                           "own: no suffix)")
 
 
 def check_env_scenario(env: str, scenario: str) -> None:

@@ -433,7 +433,7 @@ def robustness(seeds: Sequence[int] = ROBUSTNESS_SEEDS,
 
 def quick() -> Experiment:
     """A couple of minutes: the main controllers on every env, one or two seeds."""
-    ssgp = ("ssgp-mpc", "ssgp-mpc-linearized", "ssgp-mpc-linearized-parametric")
+    ssgp = ("ssgp-mpc", "ssgp-mpc-linearized", "robust-mpc")
     specs = episodes(("nominal-mpc", "gp-mpc", *ssgp, "oracle-mpc", "sac", "tqc"),
                      [("cartpole", "online")], (0, 1))
     specs += episodes(("nominal-mpc", *ssgp, "oracle-mpc", "ppo"), [("quadrotor", "online")],
@@ -446,9 +446,10 @@ def quick() -> Experiment:
     specs += (TrialSpec("peers", "cartpole", "gp", "ps-vs-do-mpc", 0),)
     return Experiment(
         "quick", "Quick comparison",
-        "Nominal, offline-GP, SSGP (GP in the NLP, linearized per node, and the parametric "
-        "recipe that held across the robustness envelope) and oracle MPC and "
-        "the shipped SAC policy on the cart pole (`online`, seeds 0-1); nominal, both SSGP and "
+        "Nominal, offline-GP, SSGP (GP in the NLP, linearized per node, and the robust "
+        "recipe as `make_mpc(env)` plans: IPOPT on the cart pole, the SQP on the quadrotor and "
+        "the Dubins vehicle) and oracle MPC and the shipped SAC and TQC policies on the cart "
+        "pole (`online`, seeds 0-1); nominal, the SSGP MPCs and "
         "oracle MPC and PPO on the quadrotor "
         "(`online`, seed 0) and the Dubins vehicle (seeds 0-1); nominal, SSGP and oracle MPC "
         "on the pendulum (`damped`, seed 1); SSGP update time for r = 25, "

@@ -141,6 +141,9 @@ STYLES: dict[str, Style] = {
     "oracle-mpc@sqp": Style(_ORACLE, SQP_SCHEME, "$W$", linewidth=1.0, zorder=5.0),
     "paper-mpc@sqp": Style(_SSGP, SQP_SCHEME, "$Y$"),
     "robust-mpc@sqp": Style(_SSGP_LINEARIZED_PARAMETRIC, SQP_SCHEME, "$Q$"),
+    # make_mpc(env): the robust recipe with its own scheme on each system (the SQP where it
+    # matched IPOPT); robust-mpc@converged is the older ssgp-mpc-linearized-parametric
+    "robust-mpc": Style(_SSGP_LINEARIZED_PARAMETRIC, RECEDING, "$m$"),
     "blackbox-mpc@sqp": Style(_BLACKBOX, SQP_SCHEME, "$C$"),
     # the grey-box baseline: recursive least squares on the parameter sensitivities, no GP
     "parametric-mpc": Style(_PARAMETRIC_RLS, RECEDING, "$j$"),

@@ -204,9 +204,11 @@ def test_list_controllers_names_the_envs_each_rl_controller_has_a_model_for(
 
 
 @pytest.mark.parametrize(("name", "message"), [
-    ("robust-mpc@fast", "unknown scheme 'fast' of controller 'robust-mpc' (schemes: sqp, rti, "
-                        "rti-split, as robust-mpc@sqp; converged: no suffix)"),
-    ("robust-mpc@converged", "the converged scheme has no suffix; use 'robust-mpc'"),
+    ("robust-mpc@fast", "unknown scheme 'fast' of controller 'robust-mpc' (schemes: "
+                        "converged, sqp, rti, rti-split, as robust-mpc@sqp; the recipe's own: "
+                        "no suffix)"),
+    ("paper-mpc@converged", "the paper recipe's own scheme is the converged one; use "
+                            "'paper-mpc'"),
     ("ssgp-mpc@rti", "'ssgp-mpc' is an older name of 'paper-mpc'; use 'paper-mpc@rti'"),
 ])
 def test_a_known_mpc_with_an_unknown_scheme_names_the_schemes(

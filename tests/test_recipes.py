@@ -109,11 +109,33 @@ def test_a_recipe_takes_its_own_levenberg_marquardt_where_it_sets_one():
             == tuning.levenberg_marquardt
     assert make_mpc(env, "robust", scheme=RTI(levenberg_marquardt=0.5)) \
         .config.scheme.levenberg_marquardt == 0.5
-    assert isinstance(make_mpc(env, "robust").config.scheme, Converged)
+    assert isinstance(make_mpc(env, "robust", scheme="converged").config.scheme, Converged)
+    # the SQP iterates to convergence with a line search: undamped, whatever the RTI's tuning
+    assert make_mpc(env, "robust", scheme="sqp").config.scheme.levenberg_marquardt == 0.0
+    assert make_mpc(env, "robust", scheme=SQP(levenberg_marquardt=0.5)) \
+        .config.scheme.levenberg_marquardt == 0.5
     cart = _env("cartpole")
     assert "cartpole" not in RECIPE_RTI["robust"]
     assert make_mpc(cart, "robust", scheme="rti").config.scheme.levenberg_marquardt \
         == rti_tuning("cartpole").levenberg_marquardt
+
+
+@pytest.mark.parametrize("system", ["cartpole", "quadrotor", "dubins"])
+def test_a_recipe_without_a_scheme_plans_with_its_own_scheme_on_the_system(system):
+    """``make_mpc(env, recipe)`` without ``scheme``: the recipe's entry of ``RECIPE_SCHEMES``
+    on the env's system (the robust recipe's SQP on the quadrotor and the Dubins vehicle),
+    the converged IPOPT solve for every other recipe and system; ``scheme=`` overrides it."""
+    from gp_agents.mpc.recipes import RECIPE_SCHEMES
+
+    env = _env(system)
+    own = RECIPE_SCHEMES["robust"].get(system, "converged")
+    assert make_mpc(env).config.scheme.name == own
+    assert (system == "cartpole") == (own == "converged")
+    for recipe in ("paper", "nominal", "oracle", "blackbox", "parametric"):
+        assert recipe not in RECIPE_SCHEMES
+        assert make_mpc(env, recipe).config.scheme.name == "converged"
+    assert make_mpc(env, scheme="converged").config.scheme.name == "converged"
+    assert make_mpc(env, scheme="rti").config.scheme.name == "rti"
 
 
 def test_a_recipe_takes_its_own_recovery_budget_where_it_sets_one():

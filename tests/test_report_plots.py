@@ -77,9 +77,10 @@ def _control_period_lines(ax: Any) -> list[Line2D]:
 
 
 # ----------------------------------------------------------------------------- tables
-def _scheme(recipe) -> str:
+def _scheme(recipe) -> str | None:
+    """The scheme's name (None: a recipe's own scheme on each env)."""
     scheme = dict(recipe.settings).get("scheme", recipe.scheme)
-    return scheme if isinstance(scheme, str) else scheme.name
+    return scheme if scheme is None or isinstance(scheme, str) else scheme.name
 
 
 def _warm(recipe) -> bool:

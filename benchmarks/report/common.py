@@ -23,8 +23,8 @@ from benchmarks.trial import TrialSpec
 def cli_name(controller: str) -> str:
     """The controller's CLI name: its own, or for an older name kept as an alias
     (:data:`benchmarks.controllers.ALIASES`, e.g. ``ssgp-mpc-linearized-parametric``) the
-    composed name it stands for (``robust-mpc``). The one vocabulary of reports, docs pages and
-    README tables."""
+    composed name it stands for (``robust-mpc@converged``). The one vocabulary of reports,
+    docs pages and README tables."""
     recipe = CONTROLLERS.get(controller)
     return recipe.alias_of if recipe is not None and recipe.alias_of else controller
 

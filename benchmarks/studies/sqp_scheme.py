@@ -4,9 +4,9 @@ real-time speed; decision record ``docs/studies/sqp_scheme.md``).
 The robust recipe (``make_mpc(env)``) with ``scheme="sqp"`` (``robust-mpc@sqp``) on exactly the
 trials of the committed runs of the robust recipe with its converged IPOPT solve: the
 ``recommended`` preset's (randomized truth, 200 initial samples; seeds 400-419, the Dubins
-vehicle 400-449) and the robustness preset's robust-recipe cells on the quadrotor and the
-Dubins vehicle (``benchmarks/results/robustness-parametric``: fixed, randomized, noisy,
-perturbed and changed systems, seeds 200-249). Nothing is tuned here: the SQP's budget and
+vehicle 400-449) and the robustness preset's robust-recipe cells on every system
+(``benchmarks/results/robustness-parametric``: fixed, randomized, noisy, perturbed and changed
+systems, seeds 200-249). Nothing is tuned here: the SQP's budget and
 tolerance are its defaults. Paired by trial: success, cost (mean and largest paired relative
 difference), act median (the committed IPOPT runs' times come from other runs on this
 machine: a rough ratio, not an interleaved timing).
@@ -45,8 +45,7 @@ def specs() -> list[tuple[str, TrialSpec, TrialSpec]]:
         if spec.controller == "robust-mpc":
             out.append(("recommended", spec, dataclasses.replace(spec, controller=SQP)))
     for spec in PRESETS["robustness"].experiments[0].specs:
-        if (spec.controller == "ssgp-mpc-linearized-parametric"
-                and spec.env in ("quadrotor", "dubins")):
+        if spec.controller == "ssgp-mpc-linearized-parametric":
             out.append(("robustness-parametric", spec, dataclasses.replace(spec, controller=SQP)))
     return out
 

@@ -135,7 +135,7 @@ for _name, _recipe in STUDY_VARIANTS.items():
     register_controller(_name, _recipe)
 
 RTI_VARIANTS = {name: r for name, r in CONTROLLERS.items() if r.family == "mpc" and (
-    r.scheme != "converged" or dict(r.settings).get("scheme") in ("rti", "rti-split"))}
+    r.scheme in ("rti", "rti-split") or dict(r.settings).get("scheme") in ("rti", "rti-split"))}
 """Every real-time-iteration controller (composed names, aliases, study variants)."""
 SPEED_VARIANTS = {k: v for k, v in STUDY_VARIANTS.items() if k in (
     "ssgp-mpc-nominal-hessian", "ssgp-mpc-model-inputs", "ssgp-mpc-linearized",

@@ -138,8 +138,8 @@ class MPCConfig:
             assert tuning is not None
             scheme = dataclasses.replace(
                 scheme, qp_solver=scheme.qp_solver or tuning.qp_solver,
-                levenberg_marquardt=(tuning.levenberg_marquardt if scheme.levenberg_marquardt
-                                     is None else scheme.levenberg_marquardt))
+                levenberg_marquardt=(0.0 if scheme.levenberg_marquardt is None
+                                     else scheme.levenberg_marquardt))
         if isinstance(scheme, RTI):
             assert tuning is not None
             scheme = dataclasses.replace(

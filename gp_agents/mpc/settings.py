@@ -188,8 +188,14 @@ class SQP:
         tolerance: convergence tolerance on the full step (infinity norm, in the NLP
             variables' units) and on the constraint violation, > 0; not below the QP solver's
             own accuracy (about 1e-6 for the tuned solvers).
-        qp_solver, levenberg_marquardt: the QP's, as for :class:`RTI`; None: the system's
-            tuning (:func:`gp_agents.mpc.tuning.rti_tuning`).
+        qp_solver: the QP's, as for :class:`RTI`; None: the system's tuning
+            (:func:`gp_agents.mpc.tuning.rti_tuning`).
+        levenberg_marquardt: ``mu`` >= 0 on the QP Hessian's diagonal, as for :class:`RTI`;
+            None: 0, whatever the system's RTI tuning. The RTI's damping steadies one step
+            per period; iterated to convergence it only shortens every step (the fixed points
+            are the same), and the iteration then converges linearly and slowly (on the cart
+            pole about half the plans ran out of budget), where the line search already
+            makes each step a descent.
         fallback: the converged IPOPT solves (cold start, no convergence).
     """
 
