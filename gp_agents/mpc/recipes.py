@@ -64,8 +64,9 @@ __all__ = ["DEFAULT_RECIPE", "RECIPES", "RECIPE_SCHEMES", "OracleModel", "make_m
 
 RECIPES: dict[str, str] = {
     "robust": "nominal physics + parametric SSGP on the parameter sensitivities, linearized per "
-              "node (in the NLP itself on an outside truth); holds on randomized, changed and "
-              "noisy systems (recommended)",
+              "node (in the NLP itself on an outside truth), solved by SQP on the quadrotor and "
+              "the Dubins vehicle, by IPOPT elsewhere; holds on randomized, changed and noisy "
+              "systems (recommended)",
     "paper": "the paper's Algorithm 1: nominal physics + online SSGP, its mean inside the NLP",
     "nominal": "nominal physics only, no learning",
     "oracle": "the true model (gp_envs.oracle_model): an upper bound, not a controller you can "
