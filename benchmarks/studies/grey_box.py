@@ -7,7 +7,8 @@ part alone (:func:`gp_agents.parametric_rls`: recursive least squares on the par
 sensitivities, no Fourier features, no change detector, nominal fallback or input saturation).
 It runs on exactly the committed trials of the robust recipe at its 200 initial samples: the
 ``recommended`` preset's (randomized truth, seeds 400-419, the Dubins vehicle 400-449;
-``benchmarks/results/recommended``) and the robustness preset's
+``benchmarks/results/recommended``: ``make_mpc(env)``, the SQP on the quadrotor and the Dubins
+vehicle) and the robustness preset's
 (``ssgp-mpc-linearized-parametric`` in ``benchmarks/results/robustness-parametric``: fixed,
 randomized with the controlled system's data and with another draw's, perturbed, noisy and
 changing systems, seeds 200-219, the Dubins vehicle 200-249). Nothing is tuned here. Paired
@@ -29,7 +30,7 @@ import numpy as np
 
 from benchmarks.presets import PRESETS
 from benchmarks.report.stats import mean_ci, wilson_ci
-from benchmarks.studies.study_runs import read_metrics, run_and_record, write_tables
+from benchmarks.studies.study_runs import read_metrics, run_and_record, success_text, write_tables
 from benchmarks.trial import N_INITIAL_POINTS, TrialSpec
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -83,7 +84,7 @@ def tables(pairs: list[tuple[str, TrialSpec, TrialSpec]], ours: dict[str, dict[s
         s_ci = [wilson_ci(x, n) for x in k]
         c_ci = [mean_ci(c) for c in cost]
 
-        s = [f"{k[i]}/{n} [{s_ci[i][0]:.2f}, {s_ci[i][1]:.2f}]" for i in range(2)]
+        s = [success_text(k[i], n) for i in range(2)]
         c = [f"{cost[i].mean():.3f} [{c_ci[i][0]:.3f}, {c_ci[i][1]:.3f}]" for i in range(2)]
         lines.append(f"| {folder} | {env} | `{scenario}` | {cell} | {n} | {s[0]} | {s[1]} | "
                      f"{_verdict(s_ci[0], s_ci[1], lower_better=False)} | {c[0]} | {c[1]} | "

@@ -37,8 +37,8 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.presets import custom_experiment
-from benchmarks.report.stats import mean_ci, wilson_ci
-from benchmarks.studies.study_runs import read_metrics, run_and_record, write_tables
+from benchmarks.report.stats import mean_ci
+from benchmarks.studies.study_runs import read_metrics, run_and_record, success_text, write_tables
 from benchmarks.trial import Cell, TrialSpec
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -89,7 +89,6 @@ def table(rows: dict[str, dict[str, dict[str, str]]]) -> str:
             outside = env in OUTSIDE_ENVS
             values = np.array([float(r["return"] if outside else r["cost"]) for r in rows])
             k, n = sum(r["success"] == "True" for r in rows), len(rows)
-            lo, hi = wilson_ci(k, n)
             m_lo, m_hi = mean_ci(values)
             worst = values.min() if outside else values.max()
             off = [float(r["residual_off_steps"]) for r in rows]
@@ -97,8 +96,8 @@ def table(rows: dict[str, dict[str, dict[str, str]]]) -> str:
             act = float(np.median([float(r["act_median_ms"]) for r in rows]))
             kind = "return" if outside else "cost"
             lines.append(
-                f"| {group} | {env} | `{scenario}` | `{controller}` | {n} | {k}/{n} "
-                f"[{lo:.2f}, {hi:.2f}] | {kind} {values.mean():.2f} [{m_lo:.2f}, {m_hi:.2f}] | "
+                f"| {group} | {env} | `{scenario}` | `{controller}` | {n} | {success_text(k, n)} "
+                f"| {kind} {values.mean():.2f} [{m_lo:.2f}, {m_hi:.2f}] | "
                 f"{worst:.2f} | {off_text} | {act:.1f} |")
     return "\n".join(lines) + "\n"
 

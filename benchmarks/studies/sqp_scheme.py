@@ -1,11 +1,13 @@
 """Does the SQP scheme give the converged IPOPT solve's outcomes? (issue: converged quality at
 real-time speed; decision record ``docs/studies/sqp_scheme.md``).
 
-The robust recipe (``make_mpc(env)``) with ``scheme="sqp"`` (``robust-mpc@sqp``) on exactly the
-trials of the committed runs of the robust recipe with its converged IPOPT solve: the
-``recommended`` preset's (randomized truth, 200 initial samples; seeds 400-419, the Dubins
-vehicle 400-449) and the robustness preset's robust-recipe cells on every system
-(``benchmarks/results/robustness-parametric``: fixed, randomized, noisy, perturbed and changed
+The robust recipe with ``scheme="sqp"`` (``robust-mpc@sqp``) against its converged IPOPT solve
+(``robust-mpc@converged``) on the ``recommended`` preset's trials (randomized truth, 200
+initial samples; seeds 400-419, the Dubins vehicle 400-449; the IPOPT trials run here too,
+since that preset's ``robust-mpc`` is ``make_mpc(env)``, the SQP on the quadrotor and the
+Dubins vehicle since this study) and on the robustness preset's robust-recipe cells on every
+system, against their committed IPOPT runs (``ssgp-mpc-linearized-parametric`` in
+``benchmarks/results/robustness-parametric``: fixed, randomized, noisy, perturbed and changed
 systems, seeds 200-249). Nothing is tuned here: the SQP's budget and
 tolerance are its defaults. Paired by trial: success, cost (mean and largest paired relative
 difference), act median (the committed IPOPT runs' times come from other runs on this
@@ -26,24 +28,25 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.presets import PRESETS
-from benchmarks.report.stats import wilson_ci
-from benchmarks.studies.study_runs import read_metrics, run_and_record, write_tables
+from benchmarks.studies.study_runs import read_metrics, run_and_record, success_text, write_tables
 from benchmarks.trial import TrialSpec
 
 ROOT = Path(__file__).resolve().parents[2]
 OUT = ROOT / "benchmarks" / "results" / "sqp-scheme"
 SQP = "robust-mpc@sqp"
-REFERENCES = {"recommended": ("robust-mpc",),
-              "robustness-parametric": ("ssgp-mpc-linearized-parametric",)}
-"""Committed runs of the robust recipe's converged IPOPT solve, and its names there."""
+IPOPT = "robust-mpc@converged"
+REFERENCES = ("robustness-parametric",)
+"""Committed runs of the robust recipe's converged IPOPT solve the study pairs with (the
+others' IPOPT trials it runs itself)."""
 
 
 def specs() -> list[tuple[str, TrialSpec, TrialSpec]]:
-    """(reference folder, the committed IPOPT trial, the same trial with the SQP scheme)."""
+    """(preset, its IPOPT trial, the same trial with the SQP scheme)."""
     out = []
     for spec in PRESETS["recommended"].experiments[0].specs:
         if spec.controller == "robust-mpc":
-            out.append(("recommended", spec, dataclasses.replace(spec, controller=SQP)))
+            out.append(("recommended", dataclasses.replace(spec, controller=IPOPT),
+                        dataclasses.replace(spec, controller=SQP)))
     for spec in PRESETS["robustness"].experiments[0].specs:
         if spec.controller == "ssgp-mpc-linearized-parametric":
             out.append(("robustness-parametric", spec, dataclasses.replace(spec, controller=SQP)))
@@ -57,7 +60,7 @@ def tables(pairs: list[tuple[str, TrialSpec, TrialSpec]], ours: dict[str, dict[s
             for folder in REFERENCES}
     groups: dict[tuple[str, str, str, str], list[tuple[dict, dict]]] = defaultdict(list)
     for folder, ipopt, sqp in pairs:
-        a, b = refs[folder].get(ipopt.key), ours.get(sqp.key)
+        a, b = refs.get(folder, ours).get(ipopt.key), ours.get(sqp.key)
         if a is None or b is None or b.get("status") != "ok":
             continue
         groups[(folder, a["env"], a["scenario"], a["cell"])].append((a, b))
@@ -75,12 +78,9 @@ def tables(pairs: list[tuple[str, TrialSpec, TrialSpec]], ours: dict[str, dict[s
         fell = sum(int(float(b["solves"])) - 1 for _, b in items)  # the cold starts aside
         plans = sum(int(b["steps"]) for _, b in items)
 
-        def ci(k: int, n: int = n) -> str:
-            lo, hi = wilson_ci(k, n)
-            return f"{k}/{n} [{lo:.2f}, {hi:.2f}]"
-
         lines.append(
-            f"| {folder} | {env} | `{scenario}` | {cell} | {n} | {ci(succ[0])} | {ci(succ[1])} | "
+            f"| {folder} | {env} | `{scenario}` | {cell} | {n} | {success_text(succ[0], n)} | "
+            f"{success_text(succ[1], n)} | "
             f"{cost[0].mean():.3f} | {cost[1].mean():.3f} | "
             f"{100 * (cost[1].mean() / cost[0].mean() - 1):+.2f}% | "
             f"{100 * float(np.max(np.abs(ratio))) if n else math.nan:.2f}% | {act[0]:.2f} | "
@@ -94,7 +94,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=OUT)
     args = parser.parse_args(argv)
     pairs = specs()
-    ours = run_and_record([sqp for _, _, sqp in pairs], args.out, args.workers)
+    own = [ipopt for folder, ipopt, _ in pairs if folder not in REFERENCES]
+    ours = run_and_record([*own, *(sqp for _, _, sqp in pairs)], args.out, args.workers)
     text = write_tables(args.out,
                         "The SQP scheme against the converged IPOPT solve (robust recipe)",
                         "OMP_NUM_THREADS=1 python -m benchmarks.studies.sqp_scheme",

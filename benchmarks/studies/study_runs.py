@@ -11,7 +11,15 @@ from pathlib import Path
 from benchmarks.runner import run_trials
 from benchmarks.trial import TrialSpec
 
-__all__ = ["read_metrics", "run_and_record", "write_tables"]
+__all__ = ["read_metrics", "run_and_record", "success_text", "write_tables"]
+
+
+def success_text(k: int, n: int) -> str:
+    """``k`` successes of ``n`` with their 95% Wilson interval: ``"9/10 [0.60, 0.98]"``."""
+    from benchmarks.report.stats import wilson_ci
+
+    lo, hi = wilson_ci(k, n)
+    return f"{k}/{n} [{lo:.2f}, {hi:.2f}]"
 
 
 def read_metrics(path: Path) -> dict[str, dict[str, str]]:
