@@ -3,7 +3,12 @@
 Run (one core; the first run sets up the acados environment and compiles its solvers)::
 
     OMP_NUM_THREADS=1 python -m benchmarks.studies.acados_peer [--env quadrotor] [--steps 120]
-        [--repeats 10] [--out benchmarks/results/acados_peer]
+        [--repeats 10] [--sqp] [--out benchmarks/results/acados_peer]
+
+``--sqp`` adds the converged schemes to the same blocks: our nominal SQP (``scheme="sqp"``),
+``make_mpc(env)`` pretrained (the robust recipe's own scheme on the quadrotor, the SQP) and
+acados' converged ``SQP`` (merit backtracking, our SQP's budget, a tolerance on its KKT
+residuals) on both grids.
 
 The same OCP (dynamics, horizon, control period, cost, bounds, goal, start) is solved by
 
@@ -94,6 +99,19 @@ class Episode:
 
 
 # --------------------------------------------------------------------------- the OCP as JSON
+SQP_BUDGET, SQP_TOLERANCE = 30, 1e-4
+"""acados' converged SQP (``--sqp``): our SQP's defaults (:class:`gp_agents.SQP`), its budget
+and a tolerance on acados' KKT residuals (ours: on the full step and the violation)."""
+DEFAULT = f"{LEARNING} default"
+"""``make_mpc(env)``: the robust recipe with its own scheme (the SQP on the quadrotor)."""
+
+
+def sqp_configs(grids: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    """acados' converged SQP on each of ``grids`` (:func:`acados_grids`), merit backtracking."""
+    return [{**g, "label": f"{g['label']} SQP", "nlp_solver_type": "SQP",
+             "max_iter": SQP_BUDGET, "tol": SQP_TOLERANCE} for g in grids]
+
+
 def acados_grids(horizon: float, dt: float, n_collocation: int) -> list[dict[str, Any]]:
     """acados' shooting grids: N = our collocation node count, and N = ``horizon / dt``.
 
@@ -487,7 +505,12 @@ def write_report(out: Path, command: str, spec: dict[str, Any], worker: AcadosWo
         (f"{LEARNING} rti", f"acados N={LONG_N}", "act_ms"),
         (f"{LEARNING} rti-split", f"acados N={LONG_N} split", "latency_ms"),
         (f"{LEARNING} rti", "ours rti", "act_ms"),
-        (f"{LEARNING} rti-split", "ours rti-split", "latency_ms"))
+        (f"{LEARNING} rti-split", "ours rti-split", "latency_ms"),
+        ("ours sqp", f"acados N={spec['our_nodes']} SQP", "act_ms"),
+        ("ours sqp", f"acados N={LONG_N} SQP", "act_ms"),
+        (DEFAULT, f"acados N={spec['our_nodes']} SQP", "act_ms"),
+        (DEFAULT, f"acados N={LONG_N} SQP", "act_ms"),
+        (DEFAULT, "ours rti", "act_ms"))
         if a in labels and b in labels]
     ratio_rows = []
     for b in blocks:
@@ -565,6 +588,9 @@ def main(argv: list[str] | None = None) -> int:
                         help="the acados virtual environment (created if missing)")
     parser.add_argument("--no-learning", action="store_true",
                         help="leave out the learning RTI (the robust recipe, pretrained)")
+    parser.add_argument("--sqp", action="store_true",
+                        help="also the converged SQPs: ours (nominal, and make_mpc(env) "
+                             "pretrained) and acados' (SQP, merit backtracking)")
     parser.add_argument("--acados-python", default=None,
                         help=f"a CPython {'.'.join(map(str, PYTHON_VERSION))} for the venv")
     args = parser.parse_args(argv)
@@ -581,8 +607,8 @@ def main(argv: list[str] | None = None) -> int:
     from gp_agents import PseudospectralMPC
 
     env = gym.make(ENV_IDS[args.env])
-    agents = {f"ours {s}": PseudospectralMPC.from_env(env, scheme=s)
-              for s in ("rti", "rti-split")}
+    schemes = ("rti", "rti-split", "sqp") if args.sqp else ("rti", "rti-split")
+    agents = {f"ours {s}": PseudospectralMPC.from_env(env, scheme=s) for s in schemes}
     first = next(iter(agents.values()))
     learned: dict[str, Any] = {}
     if not args.no_learning:  # the learning RTI: the robust recipe, pretrained once
@@ -593,8 +619,13 @@ def main(argv: list[str] | None = None) -> int:
             agent = make_mpc(env, "robust", scheme=s).pretrain(data)
             agents[f"{LEARNING} {s}"] = agent
             learned[f"{LEARNING} {s}"] = copy.deepcopy(agent.learner)
+        if args.sqp:
+            agents[DEFAULT] = make_mpc(env).pretrain(data)
+            learned[DEFAULT] = copy.deepcopy(agents[DEFAULT].learner)
     env.reset(seed=BASE_SEED)
     spec = export_ocp(env, first)
+    if args.sqp:
+        spec["configs"] += sqp_configs(spec["configs"])
     try:
         python = ensure_venv(args.venv, args.acados_python)
         worker = AcadosWorker(python, spec, args.venv.parent / "acados-peer-build")
@@ -605,7 +636,8 @@ def main(argv: list[str] | None = None) -> int:
         return 0
 
     acados_runs = [(f"{c['label']}{' split' if split else ''}", c["label"], split)
-                   for c in spec["configs"] for split in (False, True)]
+                   for c in spec["configs"] for split in (False, True)
+                   if not (split and c.get("nlp_solver_type") == "SQP")]
     task = env.unwrapped.nominal_model.task
     rows: list[dict[str, Any]] = []
     try:
@@ -652,8 +684,9 @@ def main(argv: list[str] | None = None) -> int:
     worker.close()
     order = list(agents) + [r[0] for r in acados_runs]
     rows.sort(key=lambda r: (r["block"], order.index(r["controller"])))
-    write_report(args.out, command, spec, worker, rows, our_versions(), first.qp_solver
-                 if isinstance(first.qp_solver, str) else type(first.qp_solver).__name__,
+    qp_solver = first.config.scheme.qp_solver  # the resolved RTI's
+    write_report(args.out, command, spec, worker, rows, our_versions(), qp_solver
+                 if isinstance(qp_solver, str) else type(qp_solver).__name__,
                  time.perf_counter() - started, (load_start, load_average()))
     print(f"wrote {args.out / 'report.md'}")
     return 0

@@ -7,9 +7,10 @@ horizon, shooting grids, weights, bounds, goal, start). At module level it impor
 standard library and numpy, so the project's tests can import it to check its numpy dynamics
 against the project's physics without acados.
 
-It builds one ``AcadosOcpSolver`` per shooting grid of the spec (``SQP_RTI``,
-``PARTIAL_CONDENSING_HPIPM``, ``GAUSS_NEWTON``, ``ERK`` with one RK4 step per shooting interval)
-and then serves closed-loop episodes over a line protocol (one JSON object per line):
+It builds one ``AcadosOcpSolver`` per configuration of the spec (a shooting grid, ``SQP_RTI``
+or a converged ``SQP`` with its budget and tolerance, ``PARTIAL_CONDENSING_HPIPM``,
+``GAUSS_NEWTON``, ``ERK`` with one RK4 step per shooting interval) and then serves closed-loop
+episodes over a line protocol (one JSON object per line):
 
 - on start, after the builds: ``{"ready": true, "versions": ..., "build_seconds": ...}``;
 - ``{"cmd": "episode", "config": LABEL, "x0": [...], "steps": T, "split": false}``: one closed
@@ -37,7 +38,8 @@ import numpy as np
 
 YAW_DRAG_KEY = "yaw_drag_ratio"
 SETTINGS = ("nlp_solver_type", "qp_solver", "qp_solver_cond_N", "hessian_approx",
-            "integrator_type", "sim_method_num_stages", "sim_method_num_steps")
+            "integrator_type", "sim_method_num_stages", "sim_method_num_steps",
+            "nlp_solver_max_iter", "nlp_solver_tol_stat", "globalization")
 """The solver options the worker reports back, as acados stored them."""
 
 
@@ -154,7 +156,12 @@ def build_solver(spec: dict[str, Any], config: dict[str, Any], build_dir: str) -
     ocp.cost.zl = ocp.cost.zu = np.zeros(nx)
 
     opts = ocp.solver_options
-    opts.nlp_solver_type = "SQP_RTI"
+    opts.nlp_solver_type = config.get("nlp_solver_type", "SQP_RTI")
+    if opts.nlp_solver_type == "SQP":  # converged: a budget and tolerances, a line search
+        opts.nlp_solver_max_iter = int(config["max_iter"])
+        for name in ("stat", "eq", "ineq", "comp"):
+            setattr(opts, f"nlp_solver_tol_{name}", float(config["tol"]))
+        opts.globalization = "MERIT_BACKTRACKING"
     opts.qp_solver = "PARTIAL_CONDENSING_HPIPM"
     opts.hessian_approx = "GAUSS_NEWTON"
     opts.integrator_type = "ERK"
@@ -175,13 +182,15 @@ def initialize(solver: Any, n: int, x0: np.ndarray, u_ref: np.ndarray) -> None:
 
 
 def episode(spec: dict[str, Any], solver: Any, n: int, x0: np.ndarray, steps: int,
-            split: bool, converge_iterations: int) -> dict[str, Any]:
+            split: bool, converge_iterations: int, converged: bool = False) -> dict[str, Any]:
     """One closed loop of ``steps`` periods from ``x0`` on the plant.
 
     The first step converges the cold start (``converge_iterations`` RTI iterations at most,
     until the KKT residuals fall below 1e-6): acados' counterpart of the pseudospectral MPC's
     converged first solve. Every later step is one RTI iteration from the previous step's
-    iterate (no shift). ``split``: the feedback phase (``rti_phase`` 2) with the measured state
+    iterate (no shift); with a converged ``SQP`` solver (``converged``), every step is one
+    ``solve`` to its tolerance within its iteration budget, from the previous iterate.
+    ``split``: the feedback phase (``rti_phase`` 2) with the measured state
     is the step's latency, the preparation phase (``rti_phase`` 1) for the next step follows
     once the action is known, as in the project's ``rti-split``.
 
@@ -204,7 +213,10 @@ def episode(spec: dict[str, Any], solver: Any, n: int, x0: np.ndarray, steps: in
         start = time.perf_counter()
         solver.set(0, "lbx", x)
         solver.set(0, "ubx", x)
-        if k == 0:
+        if converged:
+            st = solver.solve()
+            iters.append(int(np.ravel(solver.get_stats("sqp_iter"))[0]))
+        elif k == 0:
             solver.options_set("rti_phase", 0)
             used = 0
             for used in range(1, converge_iterations + 1):  # noqa: B007  (counted after)
@@ -290,7 +302,8 @@ def serve(spec: dict[str, Any], build_dir: str, proto: TextIO) -> None:
     for config in spec["configs"]:
         start = time.perf_counter()
         solver = build_solver(spec, config, build_dir)
-        solvers[config["label"]] = (solver, len(config["time_steps"]))
+        solvers[config["label"]] = (solver, len(config["time_steps"]),
+                                    config.get("nlp_solver_type") == "SQP")
         build_seconds[config["label"]] = time.perf_counter() - start
         settings[config["label"]] = {k: solver.solver_options.get(k) for k in SETTINGS}
     proto.write(json.dumps({"ready": True, "versions": versions(),
@@ -302,10 +315,10 @@ def serve(spec: dict[str, Any], build_dir: str, proto: TextIO) -> None:
         cmd = json.loads(line)
         if cmd["cmd"] == "quit":
             break
-        solver, n = solvers[cmd["config"]]
+        solver, n, converged = solvers[cmd["config"]]
         result = episode(spec, solver, n, np.array(cmd["x0"], float), int(cmd["steps"]),
                          bool(cmd.get("split", False)),
-                         int(cmd.get("converge_iterations", 50)))
+                         int(cmd.get("converge_iterations", 50)), converged)
         proto.write(json.dumps(result) + "\n")
         proto.flush()
 
