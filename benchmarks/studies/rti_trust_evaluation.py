@@ -12,7 +12,7 @@ trials), then this to write ``rti_trust.md`` next to the run's own report::
 
 (The preset names the robust recipe's split RTI ``ssgp-mpc-rti-parametric-split`` and its
 converged MPC ``ssgp-mpc-linearized-parametric``, the frozen aliases of ``robust-mpc@rti-split``
-and ``robust-mpc``.)
+and ``robust-mpc@converged``.)
 
 The acceptance, per cell: the RTI succeeds on as many seeds as the converged MPC, every
 quadrotor seed ends within 1 cm, and at most :data:`MAX_REJECTED` of its RTI steps are
