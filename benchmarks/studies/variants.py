@@ -87,18 +87,20 @@ STUDY_VARIANTS: dict[str, ControllerRecipe] = dict([
              term="linearized"),
     # the plan-level nominal fallback and the learned term on outside truths (study plan_guard)
     _variant("robust-mpc-guarded", "robust MPC, nominal guard",
-             "robust-mpc planning beside the nominal model at every replan and acting on the "
+             "robust-mpc@converged planning beside the nominal model at every replan and acting on "
+             "the "
              "nominal plan where the learned plan's linearization error exceeds its tolerance "
              "(Converged(nominal_above=1))", learner="ssgp-parametric", residual=_SENS,
              term="linearized", scheme=Converged(nominal_above=1.0)),
     _variant("robust-mpc-linearized", "robust MPC, linearized term",
-             "robust-mpc with the learned residual linearized per node about the previous plan "
-             "on every env (term='linearized'), as it plans on the package's systems",
+             "robust-mpc@converged with the learned residual linearized per node about the "
+             "previous plan on every env (term='linearized'), as it plans on the package's "
+             "systems",
              learner="ssgp-parametric", residual=_SENS, term="linearized"),
     _variant("robust-mpc-exact", "robust MPC, exact term",
-             "robust-mpc with the learned residual itself in the NLP (term='exact') instead of "
-             "its expansion about the previous plan", learner="ssgp-parametric", residual=_SENS,
-             term="exact"),
+             "robust-mpc@converged with the learned residual itself in the NLP (term='exact') "
+             "instead of its expansion about the previous plan", learner="ssgp-parametric",
+             residual=_SENS, term="exact"),
     # the RTI's other learned terms (preset rti)
     _variant("ssgp-mpc-rti-linearized", "SSGP MPC, RTI linearized",
              "paper-mpc@rti with the GP linearized per node at the shifted plan on every system "

@@ -33,8 +33,8 @@ and the plan follows neither model. ``term=`` overrides it.
 Without ``scheme=``, a recipe plans with its own scheme on the env's system
 (:data:`RECIPE_SCHEMES`): the robust recipe with the SQP (:class:`~gp_agents.mpc.settings.SQP`,
 the real-time iteration's QP iterated to convergence, IPOPT as its fallback) on the quadrotor
-and the Dubins vehicle, where it gave IPOPT's outcomes in about half the act time; every other
-recipe and system with the converged IPOPT solve.
+and the Dubins vehicle, where it gave IPOPT's outcomes in less act time; every other recipe
+and system with the converged IPOPT solve.
 
 Each recipe resolves its own coupled settings (the robust learner's sensitivity columns come
 from the agent's own residual), so ``make_mpc(env, recipe, scheme=...)`` is all it takes; any
@@ -110,7 +110,7 @@ RECIPE_SCHEMES: Mapping[str, Mapping[str, str]] = {
 system name, where the truth is the system's own ODE; ``"converged"`` (IPOPT) everywhere else.
 The SQP (:class:`~gp_agents.mpc.settings.SQP`) stands in for IPOPT only where its outcomes
 matched IPOPT's on the recommended and robustness trials (success equal, mean cost within 1%),
-at about half IPOPT's act time. The cart pole keeps IPOPT: the SQP converges to the KKT point
+where it is the faster of the two. The cart pole keeps IPOPT: the SQP converges to the KKT point
 of the learner itself in the NLP (its term re-expanded at every iterate), IPOPT to that of the
 term's expansion, and on the swing-up, whose plans have several local optima, the two reach
 different ones: success and mean cost differed both ways from cell to cell. Systems without

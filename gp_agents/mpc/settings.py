@@ -193,9 +193,8 @@ class SQP:
         levenberg_marquardt: ``mu`` >= 0 on the QP Hessian's diagonal, as for :class:`RTI`;
             None: 0, whatever the system's RTI tuning. The RTI's damping steadies one step
             per period; iterated to convergence it only shortens every step (the fixed points
-            are the same), and the iteration then converges linearly and slowly (on the cart
-            pole about half the plans ran out of budget), where the line search already
-            makes each step a descent.
+            are the same), and the iteration then converges linearly and slowly, often not
+            within its budget, where the line search already makes each step a descent.
         fallback: the converged IPOPT solves (cold start, no convergence).
     """
 
